@@ -1,0 +1,342 @@
+//! PCD point clouds (PCL): `VERSION .5`/`0.6`/`0.7` headers, with or without `VIEWPOINT`;
+//! `DATA ascii`, `binary` and `binary_compressed` (LZF). Only fields `x`, `y`, `z` are read.
+
+use crate::cloud::Point;
+use crate::error::{GgsError, Result};
+use std::path::Path;
+
+#[derive(Debug, Clone)]
+struct Field {
+    name: String,
+    size: usize,
+    kind: u8,
+    count: usize,
+}
+
+/// Read the points of a PCD file.
+pub fn parse_pcd(path: &Path, bytes: &[u8]) -> Result<Vec<Point>> {
+    let mut pos = 0usize;
+    let mut line_no = 0usize;
+    let mut names: Vec<String> = Vec::new();
+    let mut sizes: Vec<usize> = Vec::new();
+    let mut types: Vec<u8> = Vec::new();
+    let mut counts: Vec<usize> = Vec::new();
+    let (mut width, mut height, mut points) = (None::<usize>, 1usize, None::<usize>);
+    let data_kind: String;
+    loop {
+        let Some(nl) = bytes[pos..].iter().position(|&b| b == b'\n') else {
+            return Err(GgsError::at_line(path, line_no + 1, "the header ends before its 'DATA' line"));
+        };
+        let line = String::from_utf8_lossy(&bytes[pos..pos + nl]).trim().to_string();
+        pos += nl + 1;
+        line_no += 1;
+        if line.is_empty() || line.starts_with('#') {
+            continue;
+        }
+        let mut tok = line.split_whitespace();
+        let key = tok.next().unwrap_or("").to_ascii_uppercase();
+        let rest: Vec<&str> = tok.collect();
+        let parse_usize = |t: &str| {
+            t.parse::<usize>()
+                .map_err(|_| GgsError::at_line(path, line_no, format!("'{t}' is not a non-negative integer ({key})")))
+        };
+        match key.as_str() {
+            "VERSION" | "VIEWPOINT" => {}
+            "FIELDS" | "COLUMNS" => names = rest.iter().map(|s| s.to_string()).collect(),
+            "SIZE" => sizes = rest.iter().map(|t| parse_usize(t)).collect::<Result<_>>()?,
+            "TYPE" => {
+                types = rest
+                    .iter()
+                    .map(|t| match *t {
+                        "F" | "I" | "U" => Ok(t.as_bytes()[0]),
+                        _ => Err(GgsError::at_line(path, line_no, format!("unknown TYPE '{t}' (expected F, I or U)"))),
+                    })
+                    .collect::<Result<_>>()?
+            }
+            "COUNT" => counts = rest.iter().map(|t| parse_usize(t)).collect::<Result<_>>()?,
+            "WIDTH" => width = Some(parse_usize(rest.first().copied().unwrap_or(""))?),
+            "HEIGHT" => height = parse_usize(rest.first().copied().unwrap_or(""))?,
+            "POINTS" => points = Some(parse_usize(rest.first().copied().unwrap_or(""))?),
+            "DATA" => {
+                data_kind = rest.first().copied().unwrap_or("").to_ascii_lowercase();
+                break;
+            }
+            _ => {
+                return Err(GgsError::at_line(path, line_no, format!("unknown header keyword '{key}'")));
+            }
+        }
+    }
+    if names.is_empty() {
+        return Err(GgsError::in_file(path, "the header has no FIELDS line"));
+    }
+    if counts.is_empty() {
+        counts = vec![1; names.len()];
+    }
+    if sizes.len() != names.len() || types.len() != names.len() || counts.len() != names.len() {
+        return Err(GgsError::in_file(
+            path,
+            format!(
+                "FIELDS has {} entries but SIZE {}, TYPE {}, COUNT {}",
+                names.len(),
+                sizes.len(),
+                types.len(),
+                counts.len()
+            ),
+        ));
+    }
+    let fields: Vec<Field> = (0..names.len())
+        .map(|i| Field { name: names[i].clone(), size: sizes[i], kind: types[i], count: counts[i] })
+        .collect();
+    for f in &fields {
+        let ok = matches!((f.kind, f.size), (b'F', 4 | 8) | (b'I' | b'U', 1 | 2 | 4 | 8));
+        if !ok {
+            return Err(GgsError::in_file(path, format!("field '{}': unsupported TYPE {} with SIZE {}", f.name, f.kind as char, f.size)));
+        }
+    }
+    let n = match (points, width) {
+        (Some(p), _) => p,
+        (None, Some(w)) => w * height,
+        (None, None) => return Err(GgsError::in_file(path, "the header has neither POINTS nor WIDTH")),
+    };
+    let xyz: Vec<usize> = ["x", "y", "z"]
+        .iter()
+        .map(|name| {
+            fields
+                .iter()
+                .position(|f| f.name == *name)
+                .ok_or_else(|| GgsError::in_file(path, format!("no field '{name}' in FIELDS")))
+        })
+        .collect::<Result<_>>()?;
+    let data = &bytes[pos..];
+    match data_kind.as_str() {
+        "ascii" => read_ascii(path, data, line_no, &fields, &xyz, n),
+        "binary" => read_binary(path, data, pos, &fields, &xyz, n),
+        "binary_compressed" => read_compressed(path, data, pos, &fields, &xyz, n),
+        other => Err(GgsError::at_line(path, line_no, format!("unknown DATA '{other}' (expected ascii, binary or binary_compressed)"))),
+    }
+}
+
+fn decode(f: &Field, b: &[u8]) -> f64 {
+    match (f.kind, f.size) {
+        (b'F', 4) => f32::from_le_bytes(b[..4].try_into().unwrap()) as f64,
+        (b'F', _) => f64::from_le_bytes(b[..8].try_into().unwrap()),
+        (b'I', 1) => b[0] as i8 as f64,
+        (b'I', 2) => i16::from_le_bytes(b[..2].try_into().unwrap()) as f64,
+        (b'I', 4) => i32::from_le_bytes(b[..4].try_into().unwrap()) as f64,
+        (b'I', _) => i64::from_le_bytes(b[..8].try_into().unwrap()) as f64,
+        (_, 1) => b[0] as f64,
+        (_, 2) => u16::from_le_bytes(b[..2].try_into().unwrap()) as f64,
+        (_, 4) => u32::from_le_bytes(b[..4].try_into().unwrap()) as f64,
+        (_, _) => u64::from_le_bytes(b[..8].try_into().unwrap()) as f64,
+    }
+}
+
+fn read_ascii(path: &Path, data: &[u8], header_lines: usize, fields: &[Field], xyz: &[usize], n: usize) -> Result<Vec<Point>> {
+    // Token index of the first value of each field.
+    let mut first = Vec::with_capacity(fields.len());
+    let mut t = 0;
+    for f in fields {
+        first.push(t);
+        t += f.count;
+    }
+    let cols: Vec<usize> = xyz.iter().map(|&i| first[i]).collect();
+    let mut out = Vec::with_capacity(n);
+    for (li, raw) in data.split(|&b| b == b'\n').enumerate() {
+        if out.len() == n {
+            break;
+        }
+        let line_no = header_lines + li + 1;
+        let line = std::str::from_utf8(raw).map_err(|_| GgsError::at_line(path, line_no, "not valid text"))?;
+        if line.trim().is_empty() {
+            continue;
+        }
+        let toks: Vec<&str> = line.split_ascii_whitespace().collect();
+        let mut p = [0.0; 3];
+        for d in 0..3 {
+            let tok = toks.get(cols[d]).ok_or_else(|| {
+                GgsError::at_line(path, line_no, format!("expected {t} values, found {}", toks.len()))
+            })?;
+            p[d] = parse_pcd_number(tok).ok_or_else(|| GgsError::at_line(path, line_no, format!("'{tok}' is not a number")))?;
+        }
+        out.push(p);
+    }
+    if out.len() < n {
+        return Err(GgsError::in_file(path, format!("truncated: the header declares {n} points, the file holds {}", out.len())));
+    }
+    Ok(out)
+}
+
+/// PCL writes `nan` in ascii files; Rust parses it too, and also `NaN`.
+fn parse_pcd_number(t: &str) -> Option<f64> {
+    t.parse::<f64>().ok()
+}
+
+fn read_binary(path: &Path, data: &[u8], offset: usize, fields: &[Field], xyz: &[usize], n: usize) -> Result<Vec<Point>> {
+    let mut field_off = Vec::with_capacity(fields.len());
+    let mut stride = 0;
+    for f in fields {
+        field_off.push(stride);
+        stride += f.size * f.count;
+    }
+    let need = stride.checked_mul(n).ok_or_else(|| GgsError::in_file(path, "POINTS too large"))?;
+    if data.len() < need {
+        return Err(GgsError::at_byte(
+            path,
+            (offset + data.len()) as u64,
+            format!("truncated: {n} points of {stride} bytes need {need} bytes of data, found {}", data.len()),
+        ));
+    }
+    let mut out = Vec::with_capacity(n);
+    for rec in data[..need].chunks_exact(stride.max(1)).take(n) {
+        let mut p = [0.0; 3];
+        for d in 0..3 {
+            let f = &fields[xyz[d]];
+            p[d] = decode(f, &rec[field_off[xyz[d]]..]);
+        }
+        out.push(p);
+    }
+    Ok(out)
+}
+
+fn read_compressed(path: &Path, data: &[u8], offset: usize, fields: &[Field], xyz: &[usize], n: usize) -> Result<Vec<Point>> {
+    if data.len() < 8 {
+        return Err(GgsError::at_byte(path, offset as u64, "truncated: binary_compressed data needs an 8-byte size header"));
+    }
+    let csize = u32::from_le_bytes(data[0..4].try_into().unwrap()) as usize;
+    let usize_ = u32::from_le_bytes(data[4..8].try_into().unwrap()) as usize;
+    let comp = data.get(8..8 + csize).ok_or_else(|| {
+        GgsError::at_byte(path, (offset + 8) as u64, format!("truncated: compressed block of {csize} bytes, {} present", data.len() - 8))
+    })?;
+    let raw = lzf_decompress(comp, usize_).map_err(|m| GgsError::at_byte(path, (offset + 8) as u64, format!("corrupt LZF data: {m}")))?;
+    // Column layout: every field's values for all points, field after field.
+    let mut field_off = Vec::with_capacity(fields.len());
+    let mut o = 0usize;
+    for f in fields {
+        field_off.push(o);
+        o += f.size * f.count * n;
+    }
+    if raw.len() < o {
+        return Err(GgsError::in_file(path, format!("decompressed data holds {} bytes, {n} points need {o}", raw.len())));
+    }
+    let mut out = Vec::with_capacity(n);
+    for i in 0..n {
+        let mut p = [0.0; 3];
+        for d in 0..3 {
+            let f = &fields[xyz[d]];
+            let at = field_off[xyz[d]] + i * f.size * f.count;
+            p[d] = decode(f, &raw[at..]);
+        }
+        out.push(p);
+    }
+    Ok(out)
+}
+
+/// LZF decompression (the format of liblzf, used by PCL's `binary_compressed`).
+pub fn lzf_decompress(input: &[u8], out_len: usize) -> std::result::Result<Vec<u8>, String> {
+    let mut out: Vec<u8> = Vec::with_capacity(out_len);
+    let mut i = 0usize;
+    while i < input.len() {
+        let ctrl = input[i] as usize;
+        i += 1;
+        if ctrl < 32 {
+            let len = ctrl + 1;
+            let lit = input.get(i..i + len).ok_or("literal run past the end of the input")?;
+            if out.len() + len > out_len {
+                return Err("output longer than declared".into());
+            }
+            out.extend_from_slice(lit);
+            i += len;
+        } else {
+            let mut len = ctrl >> 5;
+            if len == 7 {
+                len += *input.get(i).ok_or("truncated back-reference")? as usize;
+                i += 1;
+            }
+            len += 2;
+            let low = *input.get(i).ok_or("truncated back-reference")? as usize;
+            i += 1;
+            let back = ((ctrl & 0x1f) << 8) + low + 1;
+            if back > out.len() {
+                return Err("back-reference before the start of the output".into());
+            }
+            if out.len() + len > out_len {
+                return Err("output longer than declared".into());
+            }
+            let start = out.len() - back;
+            for k in 0..len {
+                let b = out[start + k];
+                out.push(b);
+            }
+        }
+    }
+    if out.len() != out_len {
+        return Err(format!("decompressed {} bytes, header says {out_len}", out.len()));
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const P: &str = "t.pcd";
+
+    #[test]
+    fn ascii_v5_without_viewpoint() {
+        let s = "# .PCD v.5\nVERSION .5\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 2\nHEIGHT 1\nPOINTS 2\nDATA ascii\n1 2 3\n4 5 6\n";
+        assert_eq!(parse_pcd(Path::new(P), s.as_bytes()).unwrap(), vec![[1.0, 2.0, 3.0], [4.0, 5.0, 6.0]]);
+    }
+
+    #[test]
+    fn binary_with_extra_fields() {
+        let mut b = b"VERSION 0.7\nFIELDS intensity x y z\nSIZE 4 4 4 8\nTYPE F F F F\nCOUNT 1 1 1 1\nWIDTH 2\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS 2\nDATA binary\n".to_vec();
+        for (i, x, y, z) in [(9.0f32, 1.0f32, 2.0f32, 3.0f64), (9.0, 4.0, 5.0, 6.0)] {
+            b.extend_from_slice(&i.to_le_bytes());
+            b.extend_from_slice(&x.to_le_bytes());
+            b.extend_from_slice(&y.to_le_bytes());
+            b.extend_from_slice(&z.to_le_bytes());
+        }
+        assert_eq!(parse_pcd(Path::new(P), &b).unwrap(), vec![[1.0, 2.0, 3.0], [4.0, 5.0, 6.0]]);
+        b.truncate(b.len() - 3);
+        let e = parse_pcd(Path::new(P), &b).unwrap_err().to_string();
+        assert!(e.contains("truncated") && e.contains("byte"), "{e}");
+    }
+
+    #[test]
+    fn binary_compressed_literal_only() {
+        // Column layout for 2 points, fields x y z (f32): x0 x1 y0 y1 z0 z1.
+        let vals = [1.0f32, 4.0, 2.0, 5.0, 3.0, 6.0];
+        let raw: Vec<u8> = vals.iter().flat_map(|v| v.to_le_bytes()).collect();
+        // LZF literal runs of at most 32 bytes: 24 bytes fit in one.
+        let mut comp = vec![(raw.len() - 1) as u8];
+        comp.extend_from_slice(&raw);
+        let mut b = b"FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 2\nHEIGHT 1\nPOINTS 2\nDATA binary_compressed\n".to_vec();
+        b.extend_from_slice(&(comp.len() as u32).to_le_bytes());
+        b.extend_from_slice(&(raw.len() as u32).to_le_bytes());
+        b.extend_from_slice(&comp);
+        assert_eq!(parse_pcd(Path::new(P), &b).unwrap(), vec![[1.0, 2.0, 3.0], [4.0, 5.0, 6.0]]);
+    }
+
+    #[test]
+    fn lzf_back_reference() {
+        // "abcabcabc": literal "abc", then copy 6 bytes from distance 3.
+        let comp = [2u8, b'a', b'b', b'c', (4 << 5) as u8, 2];
+        assert_eq!(lzf_decompress(&comp, 9).unwrap(), b"abcabcabc");
+        assert!(lzf_decompress(&[(1 << 5) as u8, 10], 3).is_err());
+    }
+
+    #[test]
+    fn errors() {
+        let p = Path::new(P);
+        let e = parse_pcd(p, b"FIELDS x y\nSIZE 4 4\nTYPE F F\nCOUNT 1 1\nPOINTS 1\nDATA ascii\n1 2\n").unwrap_err().to_string();
+        assert!(e.contains("no field 'z'"), "{e}");
+        let e = parse_pcd(p, b"FIELDS x y z\nSIZE 4 4 4\nTYPE F F Q\n").unwrap_err().to_string();
+        assert!(e.contains("line 3") && e.contains("unknown TYPE"), "{e}");
+        let e = parse_pcd(p, b"FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nPOINTS 2\nDATA ascii\n1 2 3\n").unwrap_err().to_string();
+        assert!(e.contains("truncated"), "{e}");
+        let e = parse_pcd(p, b"FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nPOINTS 1\nDATA ascii\n1 x 3\n").unwrap_err().to_string();
+        assert!(e.contains("line 7") && e.contains("'x' is not a number"), "{e}");
+        let e = parse_pcd(p, b"FIELDS x y z\nBOGUS 1\n").unwrap_err().to_string();
+        assert!(e.contains("line 2"), "{e}");
+    }
+}

@@ -1,0 +1,489 @@
+//! PLY point clouds: ascii, binary little endian and binary big endian; any scalar property
+//! types and order; extra elements (`range_grid`, faces, …), `comment` and `obj_info` lines
+//! are skipped. Only the `vertex` element's `x`, `y`, `z` are read.
+
+use super::write_atomic;
+use crate::cloud::Point;
+use crate::error::{GgsError, Result};
+use std::path::Path;
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Scalar {
+    I8,
+    U8,
+    I16,
+    U16,
+    I32,
+    U32,
+    F32,
+    F64,
+}
+
+impl Scalar {
+    fn parse(s: &str) -> Option<Scalar> {
+        Some(match s {
+            "char" | "int8" => Scalar::I8,
+            "uchar" | "uint8" => Scalar::U8,
+            "short" | "int16" => Scalar::I16,
+            "ushort" | "uint16" => Scalar::U16,
+            "int" | "int32" => Scalar::I32,
+            "uint" | "uint32" => Scalar::U32,
+            "float" | "float32" => Scalar::F32,
+            "double" | "float64" => Scalar::F64,
+            _ => return None,
+        })
+    }
+
+    fn size(self) -> usize {
+        match self {
+            Scalar::I8 | Scalar::U8 => 1,
+            Scalar::I16 | Scalar::U16 => 2,
+            Scalar::I32 | Scalar::U32 | Scalar::F32 => 4,
+            Scalar::F64 => 8,
+        }
+    }
+
+    fn decode(self, b: &[u8], little: bool) -> f64 {
+        let mut a = [0u8; 8];
+        a[..b.len()].copy_from_slice(b);
+        if !little {
+            a[..b.len()].reverse();
+        }
+        match self {
+            Scalar::I8 => a[0] as i8 as f64,
+            Scalar::U8 => a[0] as f64,
+            Scalar::I16 => i16::from_le_bytes([a[0], a[1]]) as f64,
+            Scalar::U16 => u16::from_le_bytes([a[0], a[1]]) as f64,
+            Scalar::I32 => i32::from_le_bytes([a[0], a[1], a[2], a[3]]) as f64,
+            Scalar::U32 => u32::from_le_bytes([a[0], a[1], a[2], a[3]]) as f64,
+            Scalar::F32 => f32::from_le_bytes([a[0], a[1], a[2], a[3]]) as f64,
+            Scalar::F64 => f64::from_le_bytes(a),
+        }
+    }
+}
+
+#[derive(Debug, Clone)]
+enum Property {
+    Scalar(Scalar, String),
+    List(Scalar, Scalar, String),
+}
+
+#[derive(Debug, Clone)]
+struct Element {
+    name: String,
+    count: usize,
+    props: Vec<Property>,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Encoding {
+    Ascii,
+    BinaryLe,
+    BinaryBe,
+}
+
+struct Header {
+    encoding: Encoding,
+    elements: Vec<Element>,
+    /// Byte offset of the first data byte.
+    data_start: usize,
+    /// Number of header lines (so ascii data line numbers can be reported).
+    lines: usize,
+}
+
+fn parse_header(path: &Path, bytes: &[u8]) -> Result<Header> {
+    let mut pos = 0usize;
+    let mut line_no = 0usize;
+    let mut encoding = None;
+    let mut elements: Vec<Element> = Vec::new();
+    loop {
+        let Some(nl) = bytes[pos..].iter().position(|&b| b == b'\n') else {
+            return Err(GgsError::at_line(
+                path,
+                line_no + 1,
+                "the header ends before 'end_header'",
+            ));
+        };
+        let raw = &bytes[pos..pos + nl];
+        pos += nl + 1;
+        line_no += 1;
+        let line = String::from_utf8_lossy(raw);
+        let line = line.trim();
+        let mut tok = line.split_whitespace();
+        let key = tok.next().unwrap_or("");
+        if line_no == 1 {
+            if key != "ply" {
+                return Err(GgsError::at_line(path, 1, "expected 'ply' magic line"));
+            }
+            continue;
+        }
+        match key {
+            "format" => {
+                encoding = Some(match tok.next() {
+                    Some("ascii") => Encoding::Ascii,
+                    Some("binary_little_endian") => Encoding::BinaryLe,
+                    Some("binary_big_endian") => Encoding::BinaryBe,
+                    other => {
+                        return Err(GgsError::at_line(
+                            path,
+                            line_no,
+                            format!("unknown format {other:?} (expected ascii, binary_little_endian or binary_big_endian)"),
+                        ))
+                    }
+                })
+            }
+            "element" => {
+                let name = tok.next().unwrap_or("").to_string();
+                let count = tok.next().and_then(|c| c.parse::<usize>().ok()).ok_or_else(|| {
+                    GgsError::at_line(path, line_no, "expected 'element NAME COUNT'")
+                })?;
+                elements.push(Element {
+                    name,
+                    count,
+                    props: Vec::new(),
+                });
+            }
+            "property" => {
+                let el = elements.last_mut().ok_or_else(|| {
+                    GgsError::at_line(path, line_no, "'property' before any 'element'")
+                })?;
+                let t = tok.next().unwrap_or("");
+                let prop = if t == "list" {
+                    let ct = tok.next().and_then(Scalar::parse);
+                    let it = tok.next().and_then(Scalar::parse);
+                    let name = tok.next();
+                    match (ct, it, name) {
+                        (Some(c), Some(i), Some(n)) => Property::List(c, i, n.to_string()),
+                        _ => {
+                            return Err(GgsError::at_line(
+                                path,
+                                line_no,
+                                "expected 'property list COUNT_TYPE ITEM_TYPE NAME'",
+                            ))
+                        }
+                    }
+                } else {
+                    let ty = Scalar::parse(t).ok_or_else(|| {
+                        GgsError::at_line(path, line_no, format!("unknown property type '{t}'"))
+                    })?;
+                    let name = tok.next().ok_or_else(|| {
+                        GgsError::at_line(path, line_no, "property without a name")
+                    })?;
+                    Property::Scalar(ty, name.to_string())
+                };
+                el.props.push(prop);
+            }
+            "end_header" => break,
+            // comment, obj_info and anything unknown: skipped.
+            _ => {}
+        }
+    }
+    let encoding =
+        encoding.ok_or_else(|| GgsError::in_file(path, "the header has no 'format' line"))?;
+    Ok(Header {
+        encoding,
+        elements,
+        data_start: pos,
+        lines: line_no,
+    })
+}
+
+/// Read the vertices of a PLY file.
+pub fn parse_ply(path: &Path, bytes: &[u8]) -> Result<Vec<Point>> {
+    let h = parse_header(path, bytes)?;
+    let vi = h
+        .elements
+        .iter()
+        .position(|e| e.name == "vertex")
+        .ok_or_else(|| GgsError::in_file(path, "no 'vertex' element in the header"))?;
+    let xyz: Vec<usize> = ["x", "y", "z"]
+        .iter()
+        .map(|n| {
+            h.elements[vi]
+                .props
+                .iter()
+                .position(|p| matches!(p, Property::Scalar(_, name) if name == n))
+                .ok_or_else(|| {
+                    GgsError::in_file(path, format!("the vertex element has no scalar property '{n}'"))
+                })
+        })
+        .collect::<Result<_>>()?;
+    match h.encoding {
+        Encoding::Ascii => read_ascii(path, bytes, &h, vi, &xyz),
+        Encoding::BinaryLe => read_binary(path, bytes, &h, vi, &xyz, true),
+        Encoding::BinaryBe => read_binary(path, bytes, &h, vi, &xyz, false),
+    }
+}
+
+fn read_ascii(path: &Path, bytes: &[u8], h: &Header, vi: usize, xyz: &[usize]) -> Result<Vec<Point>> {
+    let text = &bytes[h.data_start..];
+    let mut lines = text
+        .split(|&b| b == b'\n')
+        .enumerate()
+        .filter(|(_, l)| !l.iter().all(|b| b.is_ascii_whitespace()));
+    let mut out = Vec::with_capacity(h.elements[vi].count);
+    for (ei, el) in h.elements.iter().enumerate().take(vi + 1) {
+        for k in 0..el.count {
+            let (li, raw) = lines.next().ok_or_else(|| {
+                GgsError::in_file(
+                    path,
+                    format!(
+                        "truncated: element '{}' declares {} rows, the file ends after {k}",
+                        el.name, el.count
+                    ),
+                )
+            })?;
+            if ei != vi {
+                continue;
+            }
+            let line_no = h.lines + li + 1;
+            let line = std::str::from_utf8(raw)
+                .map_err(|_| GgsError::at_line(path, line_no, "not valid text"))?;
+            let mut tok = line.split_ascii_whitespace();
+            let mut vals = [0.0f64; 3];
+            for (pi, prop) in el.props.iter().enumerate() {
+                let mut next = |what: &str| -> Result<f64> {
+                    let t = tok.next().ok_or_else(|| {
+                        GgsError::at_line(path, line_no, format!("missing value for '{what}'"))
+                    })?;
+                    t.parse::<f64>().map_err(|_| {
+                        GgsError::at_line(path, line_no, format!("'{t}' is not a number ('{what}')"))
+                    })
+                };
+                match prop {
+                    Property::Scalar(_, name) => {
+                        let v = next(name)?;
+                        if let Some(d) = xyz.iter().position(|&x| x == pi) {
+                            vals[d] = v;
+                        }
+                    }
+                    Property::List(_, _, name) => {
+                        let n = next(name)?;
+                        for _ in 0..(n.max(0.0) as usize) {
+                            next(name)?;
+                        }
+                    }
+                }
+            }
+            out.push(vals);
+        }
+    }
+    Ok(out)
+}
+
+fn read_binary(
+    path: &Path,
+    bytes: &[u8],
+    h: &Header,
+    vi: usize,
+    xyz: &[usize],
+    little: bool,
+) -> Result<Vec<Point>> {
+    let mut pos = h.data_start;
+    let truncated = |pos: usize, el: &Element, row: usize| {
+        GgsError::at_byte(
+            path,
+            pos as u64,
+            format!(
+                "truncated: element '{}' row {row} of {} runs past the end of the file ({} bytes)",
+                el.name,
+                el.count,
+                bytes.len()
+            ),
+        )
+    };
+    let mut out = Vec::new();
+    for (ei, el) in h.elements.iter().enumerate().take(vi + 1) {
+        let fixed: Option<usize> = el
+            .props
+            .iter()
+            .map(|p| match p {
+                Property::Scalar(t, _) => Some(t.size()),
+                Property::List(..) => None,
+            })
+            .sum();
+        if ei == vi {
+            out.reserve(el.count);
+        }
+        if let (Some(size), true) = (fixed, ei != vi) {
+            let len = size
+                .checked_mul(el.count)
+                .filter(|&l| pos + l <= bytes.len())
+                .ok_or_else(|| truncated(pos, el, 0))?;
+            pos += len;
+            continue;
+        }
+        for row in 0..el.count {
+            let mut vals = [0.0f64; 3];
+            for (pi, prop) in el.props.iter().enumerate() {
+                match prop {
+                    Property::Scalar(t, _) => {
+                        let s = t.size();
+                        let b = bytes.get(pos..pos + s).ok_or_else(|| truncated(pos, el, row))?;
+                        if ei == vi {
+                            if let Some(d) = xyz.iter().position(|&x| x == pi) {
+                                vals[d] = t.decode(b, little);
+                            }
+                        }
+                        pos += s;
+                    }
+                    Property::List(ct, it, _) => {
+                        let s = ct.size();
+                        let b = bytes.get(pos..pos + s).ok_or_else(|| truncated(pos, el, row))?;
+                        let n = ct.decode(b, little);
+                        if !(0.0..=1e9).contains(&n) {
+                            return Err(GgsError::at_byte(
+                                path,
+                                pos as u64,
+                                format!("invalid list length {n}"),
+                            ));
+                        }
+                        pos += s + n as usize * it.size();
+                        if pos > bytes.len() {
+                            return Err(truncated(pos, el, row));
+                        }
+                    }
+                }
+            }
+            if ei == vi {
+                out.push(vals);
+            }
+        }
+    }
+    Ok(out)
+}
+
+/// Options of the PLY writer.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct PlyWriteOptions {
+    /// Text instead of binary little endian.
+    pub ascii: bool,
+}
+
+/// Write points (as `double x y z`) with an optional per-point colour (`uchar red green blue`),
+/// atomically (temporary file, then rename).
+pub fn write_ply(
+    path: &Path,
+    points: &[Point],
+    colors: Option<&[[u8; 3]]>,
+    opts: PlyWriteOptions,
+) -> Result<()> {
+    if let Some(c) = colors {
+        if c.len() != points.len() {
+            return Err(GgsError::param(
+                "colors",
+                format!("{} colours for {} points", c.len(), points.len()),
+            ));
+        }
+    }
+    let mut out = Vec::with_capacity(points.len() * 27 + 256);
+    let fmt = if opts.ascii {
+        "ascii"
+    } else {
+        "binary_little_endian"
+    };
+    out.extend_from_slice(
+        format!(
+            "ply\nformat {fmt} 1.0\ncomment written by ggs\nelement vertex {}\nproperty double x\nproperty double y\nproperty double z\n",
+            points.len()
+        )
+        .as_bytes(),
+    );
+    if colors.is_some() {
+        out.extend_from_slice(b"property uchar red\nproperty uchar green\nproperty uchar blue\n");
+    }
+    out.extend_from_slice(b"end_header\n");
+    for (i, p) in points.iter().enumerate() {
+        if opts.ascii {
+            let mut line = format!("{} {} {}", p[0], p[1], p[2]);
+            if let Some(c) = colors {
+                line.push_str(&format!(" {} {} {}", c[i][0], c[i][1], c[i][2]));
+            }
+            line.push('\n');
+            out.extend_from_slice(line.as_bytes());
+        } else {
+            for v in p {
+                out.extend_from_slice(&v.to_le_bytes());
+            }
+            if let Some(c) = colors {
+                out.extend_from_slice(&c[i]);
+            }
+        }
+    }
+    write_atomic(path, &out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const P: &str = "t.ply";
+
+    #[test]
+    fn ascii_with_extra_elements_and_obj_info() {
+        let s = "ply\nformat ascii 1.0\nobj_info num_cols 2\ncomment hi\nelement vertex 2\nproperty float y\nproperty float x\nproperty float z\nproperty uchar red\nelement range_grid 3\nproperty list uchar int vertex_indices\nwhatever unknown line\nend_header\n1 2 3 255\n4 5 6 0\n1 0\n0\n2 0 1\n";
+        let pts = parse_ply(Path::new(P), s.as_bytes()).unwrap();
+        assert_eq!(pts, vec![[2.0, 1.0, 3.0], [5.0, 4.0, 6.0]]);
+    }
+
+    #[test]
+    fn binary_both_endians_with_element_before_vertex() {
+        for little in [true, false] {
+            let fmt = if little { "binary_little_endian" } else { "binary_big_endian" };
+            let mut b = format!("ply\nformat {fmt} 1.0\nelement camera 1\nproperty list uchar int idx\nelement vertex 2\nproperty double x\nproperty float y\nproperty short z\nend_header\n").into_bytes();
+            // camera: list of 2 ints
+            b.push(2);
+            for v in [7i32, 8] {
+                b.extend_from_slice(&if little { v.to_le_bytes() } else { v.to_be_bytes() });
+            }
+            for (x, y, z) in [(1.5f64, 2.5f32, -3i16), (4.0, 5.0, 6)] {
+                b.extend_from_slice(&if little { x.to_le_bytes() } else { x.to_be_bytes() });
+                b.extend_from_slice(&if little { y.to_le_bytes() } else { y.to_be_bytes() });
+                b.extend_from_slice(&if little { z.to_le_bytes() } else { z.to_be_bytes() });
+            }
+            let pts = parse_ply(Path::new(P), &b).unwrap();
+            assert_eq!(pts, vec![[1.5, 2.5, -3.0], [4.0, 5.0, 6.0]]);
+        }
+    }
+
+    #[test]
+    fn errors() {
+        let p = Path::new(P);
+        let e = parse_ply(p, b"plx\n").unwrap_err().to_string();
+        assert!(e.contains("line 1"), "{e}");
+        let e = parse_ply(p, b"ply\nformat ascii 1.0\nelement vertex 1\n").unwrap_err().to_string();
+        assert!(e.contains("end_header"), "{e}");
+        let e = parse_ply(p, b"ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nend_header\n1 2\n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("no scalar property 'z'"), "{e}");
+        let e = parse_ply(p, b"ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\nproperty float z\nend_header\n1 2 3\n1 b 3\n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("line 9") && e.contains("'b' is not a number"), "{e}");
+        let e = parse_ply(p, b"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nend_header\n1 2 3\n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("truncated"), "{e}");
+        let mut b = b"ply\nformat binary_little_endian 1.0\nelement vertex 2\nproperty float x\nproperty float y\nproperty float z\nend_header\n".to_vec();
+        b.extend_from_slice(&[0u8; 16]);
+        let e = parse_ply(p, &b).unwrap_err().to_string();
+        assert!(e.contains("truncated") && e.contains("byte"), "{e}");
+        let e = parse_ply(p, b"ply\nformat binary 1.0\nend_header\n").unwrap_err().to_string();
+        assert!(e.contains("unknown format"), "{e}");
+    }
+
+    #[test]
+    fn write_read_round_trip() {
+        let dir = std::env::temp_dir().join(format!("ggs-ply-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let pts = vec![[0.1, -2.0, 3.25], [1e-9, 7.0, -0.0]];
+        for ascii in [false, true] {
+            let p = dir.join(format!("a{ascii}.ply"));
+            write_ply(&p, &pts, Some(&[[255, 0, 0], [0, 255, 0]]), PlyWriteOptions { ascii }).unwrap();
+            let back = parse_ply(&p, &std::fs::read(&p).unwrap()).unwrap();
+            assert_eq!(back, pts);
+        }
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}

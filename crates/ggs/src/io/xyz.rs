@@ -1,0 +1,114 @@
+//! Delimited text point clouds: `.xyz`, `.txt`, `.csv`, `.pts`.
+//!
+//! Values are separated by commas, semicolons or whitespace (mixed is fine: `1 , 2 , 3`).
+//! A first line whose leading values are not all numbers is a header: if it names columns
+//! `x`, `y`, `z` (any case) those are read, otherwise the first three. A `.pts` first line
+//! holding a single integer (the point count) is skipped. Lines starting with `#` or `//`
+//! and blank lines are ignored.
+
+use crate::cloud::Point;
+use crate::error::{GgsError, Result};
+use std::path::Path;
+
+fn split(line: &str) -> impl Iterator<Item = &str> {
+    line.split(|c: char| c == ',' || c == ';' || c.is_whitespace())
+        .filter(|t| !t.is_empty())
+}
+
+/// Read points from delimited text.
+pub fn parse_xyz(path: &Path, bytes: &[u8]) -> Result<Vec<Point>> {
+    let text = std::str::from_utf8(bytes).map_err(|e| {
+        GgsError::at_byte(path, e.valid_up_to() as u64, "not valid UTF-8 text")
+    })?;
+    let mut cols = [0usize, 1, 2];
+    let mut out = Vec::new();
+    let mut seen_data_or_header = false;
+    for (i, line) in text.lines().enumerate() {
+        let line_no = i + 1;
+        let t = line.trim();
+        if t.is_empty() || t.starts_with('#') || t.starts_with("//") {
+            continue;
+        }
+        let toks: Vec<&str> = split(t).collect();
+        if !seen_data_or_header {
+            seen_data_or_header = true;
+            if toks.len() == 1 && toks[0].parse::<u64>().is_ok() {
+                continue; // .pts point count
+            }
+            let numeric = toks.len() >= 3 && toks[..3].iter().all(|s| s.parse::<f64>().is_ok());
+            if !numeric {
+                let lower: Vec<String> = toks
+                    .iter()
+                    .map(|s| s.trim_matches('"').to_ascii_lowercase())
+                    .collect();
+                let find = |n: &str| lower.iter().position(|s| s == n);
+                if let (Some(x), Some(y), Some(z)) = (find("x"), find("y"), find("z")) {
+                    cols = [x, y, z];
+                } else if toks.len() < 3 {
+                    return Err(GgsError::at_line(
+                        path,
+                        line_no,
+                        format!("expected at least 3 values (x y z), found {}", toks.len()),
+                    ));
+                }
+                continue;
+            }
+        }
+        let mut p = [0.0; 3];
+        for d in 0..3 {
+            let tok = toks.get(cols[d]).ok_or_else(|| {
+                GgsError::at_line(
+                    path,
+                    line_no,
+                    format!("expected at least {} values, found {}", cols[d] + 1, toks.len()),
+                )
+            })?;
+            p[d] = tok.parse::<f64>().map_err(|_| {
+                GgsError::at_line(path, line_no, format!("'{tok}' is not a number"))
+            })?;
+        }
+        out.push(p);
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const P: &str = "t.csv";
+
+    #[test]
+    fn header_with_commas_and_spaces() {
+        let s = "x,y,z,nx,ny,nz\n-3.5 , 0.6 , -1.3 , 0,0,1\n1,2,3,0,0,1\n";
+        assert_eq!(
+            parse_xyz(Path::new(P), s.as_bytes()).unwrap(),
+            vec![[-3.5, 0.6, -1.3], [1.0, 2.0, 3.0]]
+        );
+    }
+
+    #[test]
+    fn header_with_reordered_columns() {
+        let s = "intensity z y x\n9 3 2 1\n";
+        assert_eq!(parse_xyz(Path::new(P), s.as_bytes()).unwrap(), vec![[1.0, 2.0, 3.0]]);
+    }
+
+    #[test]
+    fn headerless_whitespace_and_pts_count() {
+        let s = "2\n   2.6e+00   5.2e-02  -1.0e+00\n1 2 3 4\n";
+        assert_eq!(
+            parse_xyz(Path::new("a.pts"), s.as_bytes()).unwrap(),
+            vec![[2.6, 0.052, -1.0], [1.0, 2.0, 3.0]]
+        );
+    }
+
+    #[test]
+    fn errors_name_the_line() {
+        let e = parse_xyz(Path::new(P), b"1 2 3\n4 5\n").unwrap_err().to_string();
+        assert!(e.contains("line 2") && e.contains("t.csv"), "{e}");
+        let e = parse_xyz(Path::new(P), b"1 2 3\n4 5 zz\n").unwrap_err().to_string();
+        assert!(e.contains("line 2") && e.contains("'zz'"), "{e}");
+        let e = parse_xyz(Path::new(P), b"a b\n").unwrap_err().to_string();
+        assert!(e.contains("line 1"), "{e}");
+    }
+}

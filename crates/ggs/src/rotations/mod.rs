@@ -1,0 +1,219 @@
+//! Rotation sets searched by the coarse stage (SPEC §5).
+//!
+//! | name | what | rows |
+//! |---|---|---|
+//! | `limited15` | the paper's Euler grid, α, γ ∈ [−90°, 90°], β ∈ [−90°, 75°], step 15° | 1886 |
+//! | `full15` | Euler grid, α, γ ∈ [0°, 345°], β ∈ [−90°, 75°], step 15° | 6364 |
+//! | `limited10` | Euler grid, α, γ ∈ [−90°, 90°], β ∈ [−90°, 80°], step 10° | 6173 |
+//! | `hopf15` | Hopf-fibration grid, 15° (duplicates kept, as the reference file) | 6912 |
+//! | `hopf15-dedup` | the same without its duplicates | 6048 |
+//! | `ico162-s10` | identity + 10°…350° about each of 162 icosphere vertices, deduplicated | 2836 |
+//!
+//! `limited15` and `full15` equal the reference `.npy` files row for row (to 2.3e-16).
+//! `limited10` has no reference file: the one the paper's authors generated has 6177 rows, of
+//! which 4 are float-noise duplicates at gimbal lock; ggs gives the 6173 distinct rotations.
+
+pub mod dedup;
+pub mod euler;
+pub mod hopf;
+pub mod icosphere;
+pub mod trig;
+
+use crate::error::{GgsError, Result};
+use nalgebra::Matrix3;
+use std::path::Path;
+
+/// The names accepted by [`RotationSet::named`].
+pub const NAMES: &[&str] = &[
+    "limited15",
+    "full15",
+    "limited10",
+    "hopf15",
+    "hopf15-dedup",
+    "ico162-s10",
+];
+
+/// Tolerance under which two rotations count as the same in the clean duplicate removal, in
+/// degrees (far below any grid step, far above float noise).
+pub const DUPLICATE_TOL_DEG: f64 = 1e-6;
+
+/// An ordered set of rotation matrices to search, with its nominal angular step.
+#[derive(Debug, Clone)]
+pub struct RotationSet {
+    /// Name for reports (`limited15`, or the file name for a loaded set).
+    pub name: String,
+    /// The rotations, applied as `R·p`.
+    pub matrices: Vec<Matrix3<f64>>,
+    /// Nominal angular step of the grid, in degrees (for a loaded set: the median angle from a
+    /// rotation to its nearest neighbour).
+    pub step_deg: f64,
+}
+
+impl RotationSet {
+    /// One of the built-in sets (see [`NAMES`]).
+    pub fn named(name: &str) -> Result<Self> {
+        let (matrices, step_deg) = match name {
+            "limited15" => (euler_set(-90, 90, -90, 75, 15, true), 15.0),
+            "full15" => (euler_set(0, 345, -90, 75, 15, true), 15.0),
+            "limited10" => (euler_set(-90, 90, -90, 80, 10, false), 10.0),
+            "hopf15" => (hopf::hopf_grid(15.0), 15.0),
+            "hopf15-dedup" => {
+                let all = hopf::hopf_grid(15.0);
+                let keep = dedup::dedup_geodesic(&all, DUPLICATE_TOL_DEG);
+                (keep.iter().map(|&i| all[i]).collect(), 15.0)
+            }
+            "ico162-s10" => {
+                let all = icosphere::axis_angle_set(2, 10);
+                let keep = dedup::dedup_geodesic(&all, DUPLICATE_TOL_DEG);
+                (keep.iter().map(|&i| all[i]).collect(), 10.0)
+            }
+            _ => {
+                return Err(GgsError::param(
+                    "rotations",
+                    format!("unknown rotation set '{name}' (known: {})", NAMES.join(", ")),
+                ))
+            }
+        };
+        Ok(RotationSet {
+            name: name.to_string(),
+            matrices,
+            step_deg,
+        })
+    }
+
+    /// A set read from a `.npy` file of shape `[N, 3, 3]` (float32 or float64). Every matrix
+    /// must be a rotation to within 1e-5 (‖RᵀR − I‖∞ and |det R − 1|).
+    pub fn from_npy(path: &Path) -> Result<Self> {
+        let arr = crate::io::npy::read_npy(path)?;
+        if arr.shape.len() != 3 || arr.shape[1] != 3 || arr.shape[2] != 3 {
+            return Err(GgsError::in_file(
+                path,
+                format!("expected an array of shape [N, 3, 3], found {:?}", arr.shape),
+            ));
+        }
+        if arr.shape[0] == 0 {
+            return Err(GgsError::in_file(path, "the rotation array has no rows"));
+        }
+        let mut matrices = Vec::with_capacity(arr.shape[0]);
+        for (i, m) in arr.data.chunks_exact(9).enumerate() {
+            let r = Matrix3::from_row_slice(m);
+            let err = (r.transpose() * r - Matrix3::identity()).abs().max();
+            let det = r.determinant();
+            if !(err <= 1e-5 && (det - 1.0).abs() <= 1e-5) {
+                return Err(GgsError::in_file(
+                    path,
+                    format!(
+                        "row {i} is not a rotation matrix (‖RᵀR − I‖ = {err:.3e}, det = {det:.6})"
+                    ),
+                ));
+            }
+            matrices.push(r);
+        }
+        let step_deg = median_nearest_angle(&matrices);
+        Ok(RotationSet {
+            name: path
+                .file_name()
+                .map(|s| s.to_string_lossy().into_owned())
+                .unwrap_or_default(),
+            matrices,
+            step_deg,
+        })
+    }
+
+    /// The same set without rotations within `tol_deg` of an earlier one.
+    pub fn deduplicated(&self, tol_deg: f64) -> Self {
+        let keep = dedup::dedup_geodesic(&self.matrices, tol_deg);
+        RotationSet {
+            name: self.name.clone(),
+            matrices: keep.iter().map(|&i| self.matrices[i]).collect(),
+            step_deg: self.step_deg,
+        }
+    }
+
+    pub fn len(&self) -> usize {
+        self.matrices.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.matrices.is_empty()
+    }
+}
+
+/// Euler grid with α, γ over `[lo, hi]` and β over `[beta_lo, beta_hi]` in `step` degrees,
+/// deduplicated with the reference rule (`reference_dedup`) or the clean geodesic one.
+fn euler_set(
+    lo: i32,
+    hi: i32,
+    beta_lo: i32,
+    beta_hi: i32,
+    step: i32,
+    reference_dedup: bool,
+) -> Vec<Matrix3<f64>> {
+    let ag = euler::angle_list_mod360(lo, hi, step);
+    let b = euler::angle_list(beta_lo, beta_hi, step);
+    let grid: Vec<Matrix3<f64>> = euler::euler_grid(&ag, &b, &ag)
+        .into_iter()
+        .map(|e| e.matrix)
+        .collect();
+    let keep = if reference_dedup {
+        dedup::dedup_reference(&grid)
+    } else {
+        dedup::dedup_geodesic(&grid, DUPLICATE_TOL_DEG)
+    };
+    keep.into_iter().map(|i| grid[i]).collect()
+}
+
+/// Median over rotations of the geodesic angle to the nearest other rotation, in degrees
+/// (0 for a single rotation). Exact duplicates are skipped as neighbours.
+pub fn median_nearest_angle(rotations: &[Matrix3<f64>]) -> f64 {
+    if rotations.len() < 2 {
+        return 0.0;
+    }
+    let mut nearest: Vec<f64> = rotations
+        .iter()
+        .enumerate()
+        .map(|(i, a)| {
+            let mut best_trace = f64::NEG_INFINITY;
+            for (j, b) in rotations.iter().enumerate() {
+                if i == j {
+                    continue;
+                }
+                let t = a.component_mul(b).sum();
+                if t < 3.0 - 1e-12 && t > best_trace {
+                    best_trace = t;
+                }
+            }
+            ((best_trace - 1.0) / 2.0).clamp(-1.0, 1.0).acos().to_degrees()
+        })
+        .collect();
+    nearest.sort_by(f64::total_cmp);
+    nearest[nearest.len() / 2]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn unknown_name_is_an_error() {
+        let e = RotationSet::named("nope").unwrap_err().to_string();
+        assert!(e.contains("limited15"), "{e}");
+    }
+
+    #[test]
+    fn sizes_of_the_sets() {
+        assert_eq!(RotationSet::named("limited15").unwrap().len(), 1886);
+        assert_eq!(RotationSet::named("ico162-s10").unwrap().len(), 2836);
+        assert_eq!(RotationSet::named("hopf15").unwrap().len(), 6912);
+    }
+
+    #[test]
+    fn all_matrices_are_rotations() {
+        for name in ["limited15", "ico162-s10", "hopf15"] {
+            for r in RotationSet::named(name).unwrap().matrices {
+                assert!((r.transpose() * r - Matrix3::identity()).abs().max() < 1e-14);
+                assert!((r.determinant() - 1.0).abs() < 1e-14);
+            }
+        }
+    }
+}

@@ -1,0 +1,192 @@
+//! Rigid transforms `p ↦ R·p + t` (R in SO(3), t in the cloud's units).
+//!
+//! Convention everywhere in ggs: a registration result T maps source points into the target
+//! frame, `p_target = T · p_source`.
+
+use crate::cloud::Point;
+use nalgebra::{Matrix3, Matrix4, Vector3};
+
+/// A rigid transform `p ↦ R·p + t`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Rigid {
+    pub rotation: Matrix3<f64>,
+    pub translation: Vector3<f64>,
+}
+
+impl Default for Rigid {
+    fn default() -> Self {
+        Self::identity()
+    }
+}
+
+impl Rigid {
+    pub fn identity() -> Self {
+        Rigid {
+            rotation: Matrix3::identity(),
+            translation: Vector3::zeros(),
+        }
+    }
+
+    pub fn new(rotation: Matrix3<f64>, translation: Vector3<f64>) -> Self {
+        Rigid {
+            rotation,
+            translation,
+        }
+    }
+
+    /// `R·p + t`.
+    pub fn apply(&self, p: &Point) -> Point {
+        let v = self.rotation * Vector3::new(p[0], p[1], p[2]) + self.translation;
+        [v.x, v.y, v.z]
+    }
+
+    /// `T⁻¹ = [Rᵀ, −Rᵀ·t]`.
+    pub fn inverse(&self) -> Self {
+        let rt = self.rotation.transpose();
+        Rigid {
+            rotation: rt,
+            translation: -(rt * self.translation),
+        }
+    }
+
+    /// `self ∘ other`: apply `other` first, then `self`.
+    pub fn compose(&self, other: &Rigid) -> Self {
+        Rigid {
+            rotation: self.rotation * other.rotation,
+            translation: self.rotation * other.translation + self.translation,
+        }
+    }
+
+    /// Homogeneous 4×4 matrix.
+    pub fn to_matrix4(&self) -> Matrix4<f64> {
+        let mut m = Matrix4::identity();
+        m.fixed_view_mut::<3, 3>(0, 0).copy_from(&self.rotation);
+        m.fixed_view_mut::<3, 1>(0, 3).copy_from(&self.translation);
+        m
+    }
+
+    /// Row-major 4×4 as nested arrays (for JSON).
+    pub fn to_rows(&self) -> [[f64; 4]; 4] {
+        let m = self.to_matrix4();
+        let mut out = [[0.0; 4]; 4];
+        for (r, row) in out.iter_mut().enumerate() {
+            for (c, v) in row.iter_mut().enumerate() {
+                *v = m[(r, c)];
+            }
+        }
+        out
+    }
+
+    /// From 16 row-major numbers. Checks the last row is `0 0 0 1` and that the 3×3 block is a
+    /// rotation to within `tol` (‖RᵀR − I‖∞ and |det R − 1|).
+    pub fn from_row_major(v: &[f64], tol: f64) -> Result<Self, String> {
+        if v.len() != 16 {
+            return Err(format!("expected 16 numbers, found {}", v.len()));
+        }
+        if v.iter().any(|x| !x.is_finite()) {
+            return Err("the matrix has a NaN or infinite entry".into());
+        }
+        let bottom = [v[12], v[13], v[14], v[15]];
+        if bottom
+            .iter()
+            .zip([0.0, 0.0, 0.0, 1.0])
+            .any(|(a, b)| (a - b).abs() > tol)
+        {
+            return Err(format!("last row must be 0 0 0 1, found {bottom:?}"));
+        }
+        let r = Matrix3::new(v[0], v[1], v[2], v[4], v[5], v[6], v[8], v[9], v[10]);
+        let err = (r.transpose() * r - Matrix3::identity()).abs().max();
+        let det = r.determinant();
+        if err > tol || (det - 1.0).abs() > tol {
+            return Err(format!(
+                "the 3×3 block is not a rotation (‖RᵀR − I‖ = {err:.3e}, det = {det:.6})"
+            ));
+        }
+        Ok(Rigid::new(r, Vector3::new(v[3], v[7], v[11])))
+    }
+
+    /// Text form: four lines of four numbers, full precision (`{:.17e}` round-trips f64).
+    pub fn to_text(&self) -> String {
+        let mut s = String::new();
+        for row in self.to_rows() {
+            let line: Vec<String> = row.iter().map(|v| format_number(*v)).collect();
+            s.push_str(&line.join(" "));
+            s.push('\n');
+        }
+        s
+    }
+}
+
+/// Shortest decimal text that parses back to the same f64 (Rust's `Display` guarantees it).
+fn format_number(v: f64) -> String {
+    if v == 0.0 {
+        "0".to_string()
+    } else {
+        format!("{v}")
+    }
+}
+
+/// Geodesic angle between two rotations in degrees:
+/// `θ = degrees(arccos(clip((trace(AᵀB) − 1)/2, −1, 1)))`.
+pub fn rotation_angle_deg(a: &Matrix3<f64>, b: &Matrix3<f64>) -> f64 {
+    let tr = (a.transpose() * b).trace();
+    ((tr - 1.0) / 2.0).clamp(-1.0, 1.0).acos().to_degrees()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::Rotation3;
+    use proptest::prelude::*;
+
+    fn rigid(ax: f64, ay: f64, az: f64, t: [f64; 3]) -> Rigid {
+        let r = Rotation3::from_euler_angles(ax, ay, az).into_inner();
+        Rigid::new(r, Vector3::new(t[0], t[1], t[2]))
+    }
+
+    proptest! {
+        #[test]
+        fn inverse_composes_to_identity(ax in -3.2f64..3.2, ay in -1.5f64..1.5, az in -3.2f64..3.2,
+                                        tx in -10f64..10.0, ty in -10f64..10.0, tz in -10f64..10.0) {
+            let t = rigid(ax, ay, az, [tx, ty, tz]);
+            let i = t.compose(&t.inverse());
+            prop_assert!((i.rotation - Matrix3::identity()).abs().max() < 1e-12);
+            prop_assert!(i.translation.norm() < 1e-12);
+            let p = [1.0, -2.0, 3.0];
+            let q = t.inverse().apply(&t.apply(&p));
+            prop_assert!((q[0] - p[0]).abs() < 1e-9 && (q[1] - p[1]).abs() < 1e-9 && (q[2] - p[2]).abs() < 1e-9);
+        }
+    }
+
+    #[test]
+    fn text_round_trip_is_exact() {
+        let t = rigid(0.3, -0.2, 1.1, [0.1, 2.5e-7, -3.0]);
+        let text = t.to_text();
+        let nums: Vec<f64> = text
+            .split_whitespace()
+            .map(|s| s.parse().unwrap())
+            .collect();
+        let back = Rigid::from_row_major(&nums, 1e-9).unwrap();
+        assert_eq!(back, t);
+    }
+
+    #[test]
+    fn rejects_non_rotation() {
+        let mut v = vec![0.0; 16];
+        v[0] = 2.0;
+        v[5] = 1.0;
+        v[10] = 1.0;
+        v[15] = 1.0;
+        assert!(Rigid::from_row_major(&v, 1e-6).is_err());
+        assert!(Rigid::from_row_major(&v[..15], 1e-6).is_err());
+    }
+
+    #[test]
+    fn angle_between_rotations() {
+        let a = Rotation3::from_axis_angle(&Vector3::z_axis(), 0.0).into_inner();
+        let b = Rotation3::from_axis_angle(&Vector3::z_axis(), std::f64::consts::FRAC_PI_2)
+            .into_inner();
+        assert!((rotation_angle_deg(&a, &b) - 90.0).abs() < 1e-12);
+        assert_eq!(rotation_angle_deg(&a, &a), 0.0);
+    }
+}
