@@ -1,1 +1,46 @@
-fn main(){}
+//! `ggs`: the command line. It parses arguments, calls the library and prints; nothing else.
+
+mod register;
+
+use clap::{Parser, Subcommand};
+use std::process::ExitCode;
+
+/// Correspondence-free global registration of 3-D point clouds (Greedy Grid Search).
+#[derive(Parser)]
+#[command(name = "ggs", version, about, long_about = None)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Register SOURCE onto TARGET: print T with p_target = T · p_source.
+    Register(register::RegisterArgs),
+    /// Write a rotation set to a .npy file of shape [N, 3, 3] (or print its size).
+    Rotations(register::RotationsArgs),
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    tracing_subscriber::fmt()
+        .with_writer(std::io::stderr)
+        .with_env_filter(
+            tracing_subscriber::EnvFilter::try_from_default_env()
+                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("warn")),
+        )
+        .without_time()
+        .with_target(false)
+        .init();
+    let outcome = match cli.command {
+        Command::Register(a) => register::run(a),
+        Command::Rotations(a) => register::run_rotations(a),
+    };
+    match outcome {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::from(2)
+        }
+    }
+}

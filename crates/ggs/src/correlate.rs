@@ -52,6 +52,14 @@ pub fn fast_len(min: usize, even: bool) -> usize {
     }
 }
 
+/// Round to the nearest integer (ties to even) for |v| < 2^51, without a libm call:
+/// adding and subtracting 1.5·2^52 leaves no fraction bits.
+#[inline(always)]
+fn round_small(v: f64) -> f64 {
+    const MAGIC: f64 = 6_755_399_441_055_744.0;
+    (v + MAGIC) - MAGIC
+}
+
 /// Sizes of one correlation problem, all in cells.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
 pub struct Geometry {
@@ -157,6 +165,15 @@ impl Workspace {
             self.real[start..start + ns[1] * lz].fill(0.0);
         }
         self.ns = ns;
+    }
+
+    /// The grid buffer with its strides `(buffer, sy, sx)`: cell (i, j, k) is
+    /// `buffer[i·sx + j·sy + k]`; write 1.0 to mark it occupied (the fast path for
+    /// voxelizing many points).
+    #[inline]
+    pub fn grid_mut(&mut self) -> (&mut [f64], usize, usize) {
+        let lz = self.rrow.len();
+        (&mut self.real[..], lz, self.ay * lz)
     }
 
     /// Mark cell (i, j, k) of the current source grid as occupied.
@@ -373,7 +390,7 @@ impl CpuCorrelator {
                 for az in 0..nsz {
                     let jz = (az + lz - cz) % lz;
                     let v = ws.rrow[jz];
-                    let m = v.round();
+                    let m = round_small(v);
                     max_err = max_err.max((v - m).abs());
                     visit(m as i64, [ax, ay, az]);
                 }

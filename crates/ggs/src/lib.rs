@@ -25,6 +25,7 @@ pub mod error;
 pub mod io;
 pub mod memory;
 pub mod metrics;
+pub mod rotated;
 pub mod rotations;
 pub mod search;
 pub mod transform;

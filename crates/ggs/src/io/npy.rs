@@ -96,7 +96,17 @@ pub fn parse_npy(path: &Path, bytes: &[u8]) -> Result<NpyArray> {
 /// Write a 2-D float64 array (C order, little endian, format 1.0), atomically.
 pub fn write_npy_f64(path: &Path, rows: usize, cols: usize, data: &[f64]) -> Result<()> {
     assert_eq!(rows * cols, data.len());
-    let mut header = format!("{{'descr': '<f8', 'fortran_order': False, 'shape': ({rows}, {cols}), }}");
+    write_npy_shape(path, &format!("({rows}, {cols})"), data)
+}
+
+/// Write a float64 array of shape [n, 3, 3] (rotation matrices), atomically.
+pub fn write_npy_3d(path: &Path, n: usize, data: &[f64]) -> Result<()> {
+    assert_eq!(n * 9, data.len());
+    write_npy_shape(path, &format!("({n}, 3, 3)"), data)
+}
+
+fn write_npy_shape(path: &Path, shape: &str, data: &[f64]) -> Result<()> {
+    let mut header = format!("{{'descr': '<f8', 'fortran_order': False, 'shape': {shape}, }}");
     // Pad so that magic + version + length + header + '\n' is a multiple of 64.
     let total = 10 + header.len() + 1;
     header.push_str(&" ".repeat((64 - total % 64) % 64));

@@ -1,0 +1,260 @@
+//! `ggs register` and `ggs rotations`.
+
+use anyhow::{bail, Context, Result};
+use clap::Args;
+use ggs::io::{self, ply, Format};
+use ggs::rotations::{RotationSet, DUPLICATE_TOL_DEG};
+use ggs::search::{self, SearchConfig, SearchResult};
+use ggs::{Cloud, Point};
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use std::io::IsTerminal;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::time::Instant;
+
+/// Voxels along the target's longest side when no `--voxel` is given.
+const AUTO_VOXEL_CELLS: usize = 32;
+
+#[derive(Args)]
+pub struct RegisterArgs {
+    /// Source point cloud (moved onto the target).
+    pub source: PathBuf,
+    /// Target point cloud.
+    pub target: PathBuf,
+    /// Voxel size in the clouds' units; default: the target's longest side / 32.
+    #[arg(long)]
+    pub voxel: Option<f64>,
+    /// Built-in rotation set: limited15, full15, limited10, hopf15, hopf15-dedup, ico162-s10.
+    #[arg(long, default_value = "limited15", conflicts_with = "rotations_file")]
+    pub rotations: String,
+    /// Rotation set from a .npy file of shape [N, 3, 3].
+    #[arg(long, value_name = "F")]
+    pub rotations_file: Option<PathBuf>,
+    /// Drop rotations within this many degrees of an earlier one in the set.
+    #[arg(long, value_name = "DEG")]
+    pub dedup: Option<f64>,
+    /// Worker threads (default: all cores). The result does not depend on it.
+    #[arg(long, default_value_t = 0)]
+    pub threads: usize,
+    /// Report the K best distinct hypotheses.
+    #[arg(long, default_value_t = 1)]
+    pub top_k: usize,
+    /// Rotations within this angle (degrees) of a better one are not distinct
+    /// (default: 2 × the set's step).
+    #[arg(long, value_name = "DEG")]
+    pub distinct_radius: Option<f64>,
+    /// Memory budget, e.g. 2G or 512M (default: half of physical memory).
+    #[arg(long, value_name = "SIZE")]
+    pub max_memory: Option<String>,
+    /// Force the input format (ply, pcd, xyz, txt, csv, pts, npy) of both clouds.
+    #[arg(long)]
+    pub format: Option<String>,
+    /// Print everything as JSON on stdout.
+    #[arg(long)]
+    pub json: bool,
+    /// Write the 4×4 matrix to this file (four lines of four numbers).
+    #[arg(short = 'o', long = "output", value_name = "T.txt")]
+    pub output: Option<PathBuf>,
+    /// Write the source, moved by T, to this PLY file.
+    #[arg(long, value_name = "OUT.ply")]
+    pub aligned: Option<PathBuf>,
+    /// Write target (blue) and moved source (orange) together to this PLY file.
+    #[arg(long, value_name = "OUT.ply")]
+    pub overlay: Option<PathBuf>,
+    /// No progress bar and no warnings.
+    #[arg(short, long)]
+    pub quiet: bool,
+}
+
+#[derive(Args)]
+pub struct RotationsArgs {
+    /// Built-in set name.
+    pub name: String,
+    /// Write the matrices here as float64 [N, 3, 3].
+    #[arg(long, value_name = "OUT.npy")]
+    pub out: Option<PathBuf>,
+}
+
+fn load(path: &Path, format: Option<Format>, quiet: bool) -> Result<Cloud> {
+    let loaded = io::read_cloud(path, format)?;
+    if loaded.dropped_non_finite > 0 && !quiet {
+        tracing::warn!(
+            "{}: dropped {} point(s) with NaN or infinite coordinates",
+            path.display(),
+            loaded.dropped_non_finite
+        );
+    }
+    Ok(loaded.cloud)
+}
+
+fn rotation_set(args: &RegisterArgs) -> Result<RotationSet> {
+    let set = match &args.rotations_file {
+        Some(f) => RotationSet::from_npy(f)?,
+        None => RotationSet::named(&args.rotations)?,
+    };
+    Ok(match args.dedup {
+        Some(tol) if tol >= 0.0 => set.deduplicated(tol.max(DUPLICATE_TOL_DEG)),
+        Some(tol) => bail!("--dedup must be ≥ 0 degrees, got {tol}"),
+        None => set,
+    })
+}
+
+fn progress_bar(len: usize, quiet: bool) -> ProgressBar {
+    if quiet || !std::io::stderr().is_terminal() {
+        return ProgressBar::hidden();
+    }
+    let pb = ProgressBar::with_draw_target(Some(len as u64), ProgressDrawTarget::stderr());
+    pb.set_style(
+        ProgressStyle::with_template("{spinner} rotations {bar:40} {pos}/{len} {per_sec} ETA {eta}")
+            .expect("valid template"),
+    );
+    pb
+}
+
+pub fn run(args: RegisterArgs) -> Result<()> {
+    let t0 = Instant::now();
+    let format = match &args.format {
+        Some(f) => Some(Format::from_name(f).with_context(|| {
+            format!("--format: unknown format '{f}' (known: ply, pcd, xyz, txt, csv, pts, npy)")
+        })?),
+        None => None,
+    };
+    let source = load(&args.source, format, args.quiet)?;
+    let target = load(&args.target, format, args.quiet)?;
+    let read_ms = t0.elapsed().as_secs_f64() * 1e3;
+    let set = rotation_set(&args)?;
+    let (voxel, voxel_auto) = match args.voxel {
+        Some(v) => (v, false),
+        None => (
+            search::auto_voxel(&target, AUTO_VOXEL_CELLS)
+                .context("cannot choose a voxel size: the target has zero extent; pass --voxel")?,
+            true,
+        ),
+    };
+    let max_memory = match &args.max_memory {
+        Some(m) => Some(
+            ggs::memory::parse_size(m)
+                .with_context(|| format!("--max-memory: cannot read '{m}' (try 2G or 512M)"))?,
+        ),
+        None => None,
+    };
+    let pb = progress_bar(set.len(), args.quiet);
+    let pbc = pb.clone();
+    let cfg = SearchConfig {
+        voxel,
+        threads: args.threads,
+        top_k: args.top_k,
+        distinct_radius_deg: args.distinct_radius,
+        max_memory,
+        progress: Some(Arc::new(move |n| pbc.set_position(n as u64))),
+        cancel: None,
+    };
+    let result = search::coarse_register(&source, &target, &set, &cfg);
+    pb.finish_and_clear();
+    let result = result?;
+
+    if let Some(path) = &args.output {
+        io::write_atomic(path, result.transform.to_text().as_bytes())?;
+    }
+    let moved: Vec<Point> = if args.aligned.is_some() || args.overlay.is_some() {
+        source.transformed(&result.transform).points
+    } else {
+        Vec::new()
+    };
+    if let Some(path) = &args.aligned {
+        ply::write_ply(path, &moved, None, Default::default())?;
+    }
+    if let Some(path) = &args.overlay {
+        let mut pts = target.points.clone();
+        pts.extend_from_slice(&moved);
+        let mut colors = vec![[40u8, 110, 255]; target.len()];
+        colors.extend(std::iter::repeat_n([255u8, 140, 0], moved.len()));
+        ply::write_ply(path, &pts, Some(&colors), Default::default())?;
+    }
+    let total_ms = t0.elapsed().as_secs_f64() * 1e3;
+    if args.json {
+        let out = serde_json::json!({
+            "source": args.source,
+            "target": args.target,
+            "voxel": voxel,
+            "voxel_auto": voxel_auto,
+            "transform": result.transform.to_rows(),
+            "result": result,
+            "read_ms": read_ms,
+            "total_ms": total_ms,
+        });
+        println!("{}", serde_json::to_string_pretty(&out)?);
+    } else {
+        print!("{}", result.transform.to_text());
+        print_summary(&result, voxel_auto, read_ms, total_ms);
+    }
+    Ok(())
+}
+
+fn print_summary(r: &SearchResult, voxel_auto: bool, read_ms: f64, total_ms: f64) {
+    let g = &r.geometry;
+    println!();
+    println!(
+        "voxel       {}{}",
+        r.voxel,
+        if voxel_auto {
+            format!(" (auto: target's longest side / {AUTO_VOXEL_CELLS}; set --voxel to choose)")
+        } else {
+            String::new()
+        }
+    );
+    println!(
+        "rotation    #{} of {} ({}), score {} (match {} = 5·n11 − n01)",
+        r.rotation_index, r.rotations, r.rotation_set, r.score, r.match_score
+    );
+    match (&r.runner_up, r.ambiguity) {
+        (Some(ru), Some(a)) => println!(
+            "ambiguity   {a:.3} (best rotation > {:.0}° away: #{} with match {})",
+            r.distinct_radius_deg, ru.rotation_index, ru.match_score
+        ),
+        _ => println!("ambiguity   n/a"),
+    }
+    for (i, h) in r.hypotheses.iter().enumerate().skip(1) {
+        println!(
+            "hypothesis  {}: rotation #{} match {}",
+            i + 1,
+            h.rotation_index,
+            h.match_score
+        );
+    }
+    println!(
+        "grids       target {}×{}×{} ({} occupied), source ≤ {}×{}×{}, FFT {}×{}×{}",
+        g.kernel_dims[0],
+        g.kernel_dims[1],
+        g.kernel_dims[2],
+        r.target_occupied,
+        g.source_max[0],
+        g.source_max[1],
+        g.source_max[2],
+        g.fft_len[0],
+        g.fft_len[1],
+        g.fft_len[2]
+    );
+    let t = &r.timings;
+    println!(
+        "time        {:.0} ms total: read {:.0}, target {:.0}, extents {:.0}, search {:.0} ms on {} thread(s)",
+        total_ms, read_ms, t.target_ms, t.extents_ms, t.search_ms, r.threads
+    );
+}
+
+pub fn run_rotations(args: RotationsArgs) -> Result<()> {
+    let set = RotationSet::named(&args.name)?;
+    match &args.out {
+        Some(path) => {
+            let data: Vec<f64> = set
+                .matrices
+                .iter()
+                .flat_map(|m| (0..3).flat_map(move |r| (0..3).map(move |c| m[(r, c)])))
+                .collect();
+            io::npy::write_npy_3d(path, set.len(), &data)?;
+            println!("{}: {} rotations written to {}", set.name, set.len(), path.display());
+        }
+        None => println!("{}: {} rotations, step {}°", set.name, set.len(), set.step_deg),
+    }
+    Ok(())
+}

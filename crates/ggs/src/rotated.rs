@@ -1,0 +1,181 @@
+//! The centred source cloud, prepared for being rotated many times (SPEC §2 step 2).
+//!
+//! Points are grouped into spatial clusters (a coarse 8×8×8 grid over the cloud's box) so
+//! the exact extents of `R·(X − c)` for a rotation come from a few clusters: a cluster whose
+//! bound `u·centre + radius` cannot beat the best value found so far is skipped. The extents
+//! are computed with the same float expression as the voxelization, so both agree bit for bit.
+//! Cluster order also keeps voxel writes local. Occupancy does not depend on point order.
+
+use crate::cloud::{Cloud, Point};
+
+/// `row · p`, the one expression used for every rotated coordinate.
+#[inline(always)]
+pub fn dot_row(row: &[f64; 3], p: &Point) -> f64 {
+    row[0] * p[0] + row[1] * p[1] + row[2] * p[2]
+}
+
+#[derive(Debug, Clone, Copy)]
+struct Cluster {
+    start: usize,
+    end: usize,
+    centre: Point,
+    radius: f64,
+}
+
+/// A centred cloud grouped into clusters.
+#[derive(Debug, Clone)]
+pub struct RotatableCloud {
+    /// Centroid `c_x` that was subtracted.
+    pub centroid: Point,
+    /// `X − c_x`, grouped by cluster.
+    pub points: Vec<Point>,
+    clusters: Vec<Cluster>,
+    /// Absolute slack added to cluster bounds to cover float rounding.
+    margin: f64,
+}
+
+impl RotatableCloud {
+    /// Centre `cloud` on its mean and group it. `cloud` must not be empty.
+    pub fn new(cloud: &Cloud) -> Self {
+        let c = cloud.centroid().expect("non-empty cloud");
+        let centred: Vec<Point> = cloud
+            .points
+            .iter()
+            .map(|p| [p[0] - c[0], p[1] - c[1], p[2] - c[2]])
+            .collect();
+        let b = Cloud::new(centred.clone()).aabb().expect("non-empty");
+        let e = b.extent();
+        let cell = (e[0].max(e[1]).max(e[2]) / 8.0).max(f64::MIN_POSITIVE);
+        let key = |p: &Point| -> (u32, u32, u32) {
+            let f = |d: usize| (((p[d] - b.min[d]) / cell) as u32).min(8);
+            (f(0), f(1), f(2))
+        };
+        let mut order: Vec<usize> = (0..centred.len()).collect();
+        order.sort_by_key(|&i| (key(&centred[i]), i));
+        let points: Vec<Point> = order.iter().map(|&i| centred[i]).collect();
+        let mut clusters = Vec::new();
+        let mut start = 0;
+        while start < points.len() {
+            let k = key(&points[start]);
+            let mut end = start + 1;
+            while end < points.len() && key(&points[end]) == k {
+                end += 1;
+            }
+            let n = (end - start) as f64;
+            let mut centre = [0.0; 3];
+            for p in &points[start..end] {
+                for d in 0..3 {
+                    centre[d] += p[d] / n;
+                }
+            }
+            let radius = points[start..end]
+                .iter()
+                .map(|p| {
+                    ((p[0] - centre[0]).powi(2)
+                        + (p[1] - centre[1]).powi(2)
+                        + (p[2] - centre[2]).powi(2))
+                    .sqrt()
+                })
+                .fold(0.0, f64::max);
+            clusters.push(Cluster {
+                start,
+                end,
+                centre,
+                radius,
+            });
+            start = end;
+        }
+        let scale = points
+            .iter()
+            .map(|p| p[0].abs() + p[1].abs() + p[2].abs())
+            .fold(0.0, f64::max);
+        RotatableCloud {
+            centroid: c,
+            points,
+            clusters,
+            margin: 1e-9 * (scale + 1e-300),
+        }
+    }
+
+    /// Exact `(min, max)` over points of `row · p` (for a unit `row`).
+    pub fn range(&self, row: &[f64; 3]) -> (f64, f64) {
+        let norm = (row[0] * row[0] + row[1] * row[1] + row[2] * row[2]).sqrt();
+        let centre_dot: Vec<f64> = self.clusters.iter().map(|c| dot_row(row, &c.centre)).collect();
+        let slack = |c: &Cluster| c.radius * norm * (1.0 + 1e-12) + self.margin;
+        let eval = |c: &Cluster, lo: &mut f64, hi: &mut f64| {
+            for p in &self.points[c.start..c.end] {
+                let v = dot_row(row, p);
+                *lo = lo.min(v);
+                *hi = hi.max(v);
+            }
+        };
+        let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+        // Seed with the clusters most likely to hold the extremes.
+        let imax = (0..self.clusters.len())
+            .max_by(|&a, &b| centre_dot[a].total_cmp(&centre_dot[b]))
+            .expect("non-empty");
+        let imin = (0..self.clusters.len())
+            .min_by(|&a, &b| centre_dot[a].total_cmp(&centre_dot[b]))
+            .expect("non-empty");
+        eval(&self.clusters[imax], &mut lo, &mut hi);
+        if imin != imax {
+            eval(&self.clusters[imin], &mut lo, &mut hi);
+        }
+        for (i, c) in self.clusters.iter().enumerate() {
+            if i == imax || i == imin {
+                continue;
+            }
+            let s = slack(c);
+            if centre_dot[i] + s >= hi || centre_dot[i] - s <= lo {
+                eval(c, &mut lo, &mut hi);
+            }
+        }
+        (lo, hi)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::rotations::RotationSet;
+
+    fn lcg_cloud(n: usize, seed: u64) -> Cloud {
+        let mut s = seed;
+        let mut next = || {
+            s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (s >> 11) as f64 / (1u64 << 53) as f64
+        };
+        Cloud::new(
+            (0..n)
+                .map(|_| [next() * 3.0 - 1.0, next() * 0.5, next() * 2.0 + 7.0])
+                .collect(),
+        )
+    }
+
+    #[test]
+    fn range_equals_brute_force_bitwise() {
+        let cloud = lcg_cloud(5000, 7);
+        let rc = RotatableCloud::new(&cloud);
+        let set = RotationSet::named("limited15").unwrap();
+        for m in set.matrices.iter().step_by(17) {
+            for d in 0..3 {
+                let row = [m[(d, 0)], m[(d, 1)], m[(d, 2)]];
+                let mut lo = f64::INFINITY;
+                let mut hi = f64::NEG_INFINITY;
+                for p in &rc.points {
+                    let v = dot_row(&row, p);
+                    lo = lo.min(v);
+                    hi = hi.max(v);
+                }
+                assert_eq!(rc.range(&row), (lo, hi));
+            }
+        }
+    }
+
+    #[test]
+    fn single_point() {
+        let rc = RotatableCloud::new(&Cloud::new(vec![[1.0, 2.0, 3.0]]));
+        assert_eq!(rc.range(&[1.0, 0.0, 0.0]), (0.0, 0.0));
+        assert_eq!(rc.points.len(), 1);
+    }
+}
