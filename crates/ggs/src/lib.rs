@@ -23,6 +23,7 @@ pub mod cloud;
 pub mod correlate;
 pub mod error;
 pub mod io;
+pub mod manifest;
 pub mod memory;
 pub mod metrics;
 pub mod rotated;

@@ -211,15 +211,25 @@ pub fn coarse_register(
     let tb = target.aabb().expect("non-empty");
     let m_y = tb.min;
     let nr = voxel::grid_dims(tb.extent(), s)?;
-    let early = Geometry::new(nr, [1, 1, 1]);
-    if early.kernel_bytes() > budget {
-        return Err(memory_error(&early, 1, budget, s, early.kernel_bytes()));
-    }
-
     // Source: centre on its mean.
     let rc = RotatableCloud::new(source);
     let c_x = rc.centroid;
     let centred = &rc.points;
+    let radius = centred
+        .iter()
+        .map(|p| (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt())
+        .fold(0.0, f64::max);
+    let sizes = MemoryModel {
+        target_extent: tb.extent(),
+        source_radius: radius,
+        threads,
+        points: centred.len(),
+    };
+    let early = Geometry::new(nr, [1, 1, 1]);
+    let early_bytes = sizes.bytes(&early);
+    if early_bytes > budget {
+        return Err(sizes.error(&early, early_bytes, budget, s));
+    }
     let rot_rows: Vec<[[f64; 3]; 3]> = set.matrices.iter().map(rows).collect();
 
     let pool = rayon::ThreadPoolBuilder::new()
@@ -257,12 +267,9 @@ pub fn coarse_register(
     let t_extents = t1.elapsed();
 
     let geo = Geometry::new(nr, ns_max);
-    let estimate = geo.kernel_bytes()
-        + threads as u64 * geo.workspace_bytes()
-        + (nr.iter().product::<usize>() as u64)
-        + (centred.len() * 24) as u64;
+    let estimate = sizes.bytes(&geo);
     if estimate > budget {
-        return Err(memory_error(&geo, threads, budget, s, estimate));
+        return Err(sizes.error(&geo, estimate, budget, s));
     }
 
     // Kernel.
@@ -427,17 +434,54 @@ pub fn coarse_register(
     })
 }
 
-/// The error for a search that does not fit the budget, with a voxel size that would.
-fn memory_error(geo: &Geometry, threads: usize, budget: u64, voxel: f64, need: u64) -> GgsError {
-    // Buffers scale with the cube of 1/voxel.
-    let factor = (need as f64 / budget as f64).cbrt() * 1.1;
-    GgsError::MemoryBudget(format!(
-        "the search needs about {} (FFT grid {}×{}×{} for kernel {}×{}×{} and source up to {}×{}×{}, {threads} thread(s)) but the budget is {}; use a voxel size of at least {:.3e} (now {voxel}), fewer threads, or raise --max-memory",
-        memory::human_bytes(need),
-        geo.fft_len[0], geo.fft_len[1], geo.fft_len[2],
-        geo.kernel_dims[0], geo.kernel_dims[1], geo.kernel_dims[2],
-        geo.source_max[0], geo.source_max[1], geo.source_max[2],
-        memory::human_bytes(budget),
-        voxel * factor,
-    ))
+/// What the large buffers of a search cost, and which voxel size makes them fit.
+struct MemoryModel {
+    target_extent: [f64; 3],
+    /// Largest distance of a source point from the centroid: every rotated source grid has
+    /// at most `floor(2·radius/s) + 1` cells per axis.
+    source_radius: f64,
+    threads: usize,
+    points: usize,
+}
+
+impl MemoryModel {
+    /// Kernel spectrum, one workspace per thread, kernel occupancy and the centred points.
+    fn bytes(&self, geo: &Geometry) -> u64 {
+        geo.kernel_bytes()
+            + self.threads as u64 * geo.workspace_bytes()
+            + geo.kernel_dims.iter().product::<usize>() as u64
+            + (self.points * 24) as u64
+    }
+
+    /// Upper bound of `bytes` at voxel `s`, from the source's bounding sphere.
+    fn bound_at(&self, s: f64) -> Option<(Geometry, u64)> {
+        let nr = voxel::grid_dims(self.target_extent, s).ok()?;
+        let ns = voxel::axis_cells(2.0 * self.source_radius, s);
+        let geo = Geometry::new(nr, [ns; 3]);
+        Some((geo, self.bytes(&geo)))
+    }
+
+    /// The error for a search that does not fit, with a voxel size that does (by the bound).
+    fn error(&self, geo: &Geometry, need: u64, budget: u64, voxel: f64) -> GgsError {
+        let mut suggested = voxel;
+        for _ in 0..2000 {
+            suggested *= 1.02;
+            if self.bound_at(suggested).is_some_and(|(_, b)| b <= budget) {
+                break;
+            }
+        }
+        // Round up to 3 significant digits so the printed value still fits.
+        let unit = 10f64.powf(suggested.log10().floor() - 2.0);
+        let suggested = (suggested / unit).ceil() * unit;
+        GgsError::MemoryBudget(format!(
+            "the search needs about {} (FFT grid {}×{}×{} for kernel {}×{}×{} and source up to {}×{}×{}, {} thread(s)) but the budget is {}; use a voxel size of at least {} (now {voxel}), fewer threads, or raise --max-memory",
+            memory::human_bytes(need),
+            geo.fft_len[0], geo.fft_len[1], geo.fft_len[2],
+            geo.kernel_dims[0], geo.kernel_dims[1], geo.kernel_dims[2],
+            geo.source_max[0], geo.source_max[1], geo.source_max[2],
+            self.threads,
+            memory::human_bytes(budget),
+            format!("{suggested:.6}").trim_end_matches('0'),
+        ))
+    }
 }

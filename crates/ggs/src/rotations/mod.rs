@@ -6,7 +6,7 @@
 //! | `full15` | Euler grid, α, γ ∈ [0°, 345°], β ∈ [−90°, 75°], step 15° | 6364 |
 //! | `limited10` | Euler grid, α, γ ∈ [−90°, 90°], β ∈ [−90°, 80°], step 10° | 6173 |
 //! | `hopf15` | Hopf-fibration grid, 15° (duplicates kept, as the reference file) | 6912 |
-//! | `hopf15-dedup` | the same without its duplicates | 6048 |
+//! | `hopf15-dedup` | the same without its duplicates | 6360 |
 //! | `ico162-s10` | identity + 10°…350° about each of 162 icosphere vertices, deduplicated | 2836 |
 //!
 //! `limited15` and `full15` equal the reference `.npy` files row for row (to 2.3e-16).

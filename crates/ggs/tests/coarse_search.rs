@@ -1,0 +1,204 @@
+//! Invariants of the coarse search: exact recovery of a grid rotation with a voxel-multiple
+//! translation, and bit-identical results whatever the thread count.
+
+mod common;
+
+use common::Lcg;
+use ggs::io::read_cloud;
+use ggs::metrics::{rre, rte};
+use ggs::rotations::RotationSet;
+use ggs::search::{coarse_register, SearchConfig, SearchResult};
+use ggs::{Cloud, Rigid};
+use nalgebra::Vector3;
+use proptest::prelude::*;
+use std::sync::OnceLock;
+
+fn limited15() -> &'static RotationSet {
+    static SET: OnceLock<RotationSet> = OnceLock::new();
+    SET.get_or_init(|| RotationSet::named("limited15").unwrap())
+}
+
+fn ico() -> &'static RotationSet {
+    static SET: OnceLock<RotationSet> = OnceLock::new();
+    SET.get_or_init(|| RotationSet::named("ico162-s10").unwrap())
+}
+
+/// A random cloud: `n` points in a 1.0 × 0.6 × 0.4 box plus a denser blob, so it has no
+/// symmetry a rotation could exploit.
+fn random_cloud(seed: u64, n: usize) -> Cloud {
+    let mut r = Lcg(seed);
+    let mut pts = Vec::with_capacity(n);
+    for i in 0..n {
+        let p = if i % 4 == 0 {
+            [0.8 + 0.1 * r.next_f64(), 0.1 * r.next_f64(), 0.3 + 0.1 * r.next_f64()]
+        } else {
+            [r.next_f64(), 0.6 * r.next_f64(), 0.4 * r.next_f64()]
+        };
+        pts.push([p[0] + 3.0, p[1] - 1.0, p[2] + 0.5]);
+    }
+    Cloud::new(pts)
+}
+
+fn check_recovery(set: &RotationSet, seed: u64, k: usize, shift: [i32; 3]) {
+    let voxel = 0.08;
+    let source = random_cloud(seed, 300);
+    let truth = Rigid::new(
+        set.matrices[k],
+        Vector3::new(
+            shift[0] as f64 * voxel,
+            shift[1] as f64 * voxel,
+            shift[2] as f64 * voxel,
+        ),
+    );
+    let target = source.transformed(&truth);
+    let r = coarse_register(&source, &target, set, &SearchConfig::with_voxel(voxel)).unwrap();
+    let extent = source.aabb().unwrap().diagonal();
+    // A later duplicate of an earlier rotation (limited15 keeps 3 float-noise ones) is
+    // recovered as the earlier index with the same matrix.
+    let same_matrix = rre(&r.transform, &truth) < 1e-6;
+    assert!(
+        r.rotation_index == k || (same_matrix && r.rotation_index < k),
+        "seed {seed}: rotation {k} recovered as {}",
+        r.rotation_index
+    );
+    let e = rte(&r.transform, &truth);
+    assert!(e < 1e-9 * extent, "seed {seed} k {k}: RTE {e:e}");
+    // Perfect overlap: every source cell on a kernel cell, m = 5·n11.
+    assert_eq!(r.match_score, 5 * r.target_occupied as i64);
+    assert!(r.max_rounding_error < 1e-6);
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(12))]
+    #[test]
+    fn exact_recovery_limited15(seed in 1u64..u64::MAX, k in 0usize..1886,
+                                sx in -30i32..30, sy in -30i32..30, sz in -30i32..30) {
+        check_recovery(limited15(), seed, k, [sx, sy, sz]);
+    }
+
+    #[test]
+    fn exact_recovery_ico162(seed in 1u64..u64::MAX, k in 0usize..2836,
+                             sx in -30i32..30, sy in -30i32..30, sz in -30i32..30) {
+        check_recovery(ico(), seed, k, [sx, sy, sz]);
+    }
+}
+
+fn assert_identical(a: &SearchResult, b: &SearchResult) {
+    assert_eq!(a.transform.to_rows(), b.transform.to_rows());
+    assert_eq!(a.rotation_index, b.rotation_index);
+    assert_eq!(a.score, b.score);
+    assert_eq!(a.offset, b.offset);
+    assert_eq!(a.hypotheses, b.hypotheses);
+    assert_eq!(a.runner_up, b.runner_up);
+    assert_eq!(a.ambiguity.map(f64::to_bits), b.ambiguity.map(f64::to_bits));
+    assert_eq!(a.geometry, b.geometry);
+}
+
+#[test]
+fn bit_identical_for_1_2_and_8_threads() {
+    let dir = common::repo_root().join("tests/data");
+    let source = read_cloud(&dir.join("bun0.pcd"), None).unwrap().cloud;
+    let target = read_cloud(&dir.join("bun4.pcd"), None).unwrap().cloud;
+    for set in [limited15(), ico()] {
+        let run = |threads| {
+            let cfg = SearchConfig {
+                threads,
+                top_k: 5,
+                ..SearchConfig::with_voxel(0.006)
+            };
+            coarse_register(&source, &target, set, &cfg).unwrap()
+        };
+        let one = run(1);
+        assert_eq!(one.hypotheses.len(), 5);
+        assert_eq!(one.threads, 1);
+        for threads in [2, 8] {
+            let r = run(threads);
+            assert_eq!(r.threads, threads);
+            assert_identical(&one, &r);
+        }
+    }
+}
+
+#[test]
+fn top_k_hypotheses_are_distinct_and_ordered() {
+    let source = random_cloud(3, 300);
+    let target = source.transformed(&Rigid::new(limited15().matrices[700], Vector3::zeros()));
+    let cfg = SearchConfig {
+        top_k: 6,
+        ..SearchConfig::with_voxel(0.08)
+    };
+    let r = coarse_register(&source, &target, limited15(), &cfg).unwrap();
+    assert_eq!(r.hypotheses.len(), 6);
+    assert_eq!(r.hypotheses[0].rotation_index, r.rotation_index);
+    for w in r.hypotheses.windows(2) {
+        assert!(w[0].match_score >= w[1].match_score);
+    }
+    for (i, a) in r.hypotheses.iter().enumerate() {
+        for b in &r.hypotheses[i + 1..] {
+            assert!(rre(&a.transform, &b.transform) > r.distinct_radius_deg);
+        }
+    }
+    let ru = r.runner_up.unwrap();
+    assert_eq!(ru, r.hypotheses[1]);
+    let amb = r.ambiguity.unwrap();
+    assert!(amb < 1.0 && amb == ru.match_score as f64 / r.match_score as f64);
+}
+
+#[test]
+fn memory_guard_stops_before_allocating() {
+    let source = random_cloud(5, 200);
+    let cfg = SearchConfig {
+        max_memory: Some(1 << 20),
+        ..SearchConfig::with_voxel(0.002)
+    };
+    let e = coarse_register(&source, &source, limited15(), &cfg)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("budget") && e.contains("voxel size of at least"), "{e}");
+    // The suggested voxel fits.
+    let suggested: f64 = e
+        .split("voxel size of at least ")
+        .nth(1)
+        .unwrap()
+        .split_whitespace()
+        .next()
+        .unwrap()
+        .parse()
+        .unwrap();
+    let cfg = SearchConfig {
+        max_memory: Some(1 << 20),
+        ..SearchConfig::with_voxel(suggested)
+    };
+    coarse_register(&source, &source, limited15(), &cfg).unwrap();
+}
+
+#[test]
+fn bad_parameters_are_errors() {
+    let c = random_cloud(1, 10);
+    for v in [0.0, -1.0, f64::NAN, f64::INFINITY] {
+        assert!(coarse_register(&c, &c, limited15(), &SearchConfig::with_voxel(v)).is_err());
+    }
+    let cfg = SearchConfig {
+        top_k: 0,
+        ..SearchConfig::with_voxel(0.1)
+    };
+    assert!(coarse_register(&c, &c, limited15(), &cfg).is_err());
+    let e = coarse_register(&Cloud::default(), &c, limited15(), &SearchConfig::with_voxel(0.1))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("source") && e.contains("empty"), "{e}");
+}
+
+#[test]
+fn cancellation_stops_the_search() {
+    let c = random_cloud(2, 100);
+    let flag = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(true));
+    let cfg = SearchConfig {
+        cancel: Some(flag),
+        ..SearchConfig::with_voxel(0.1)
+    };
+    assert!(matches!(
+        coarse_register(&c, &c, limited15(), &cfg),
+        Err(ggs::GgsError::Cancelled)
+    ));
+}
