@@ -481,7 +481,7 @@ impl MemoryModel {
             geo.source_max[0], geo.source_max[1], geo.source_max[2],
             self.threads,
             memory::human_bytes(budget),
-            format!("{suggested:.6}").trim_end_matches('0'),
+            format!("{:.*}", (2.0 - suggested.log10().floor()).max(0.0) as usize, suggested),
         ))
     }
 }
