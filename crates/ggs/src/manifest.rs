@@ -53,7 +53,7 @@ pub fn parse_manifest(path: &Path, base: &Path, text: &str) -> Result<Vec<Pair>>
                 })
             })
             .collect::<Result<_>>()?;
-        let ground_truth = Rigid::from_row_major(&nums, 1e-4)
+        let ground_truth = Rigid::from_row_major(&nums, 1e-3)
             .map_err(|m| GgsError::at_line(path, n, format!("field T: {m}")))?;
         let voxel: f64 = f[5].trim().parse().map_err(|_| {
             GgsError::at_line(path, n, format!("field suggested_voxel: '{}' is not a number", f[5]))
