@@ -16,7 +16,7 @@ struct Cli {
 #[derive(Subcommand)]
 enum Command {
     /// Register SOURCE onto TARGET: print T with p_target = T · p_source.
-    Register(register::RegisterArgs),
+    Register(Box<register::RegisterArgs>),
     /// Write a rotation set to a .npy file of shape [N, 3, 3] (or print its size).
     Rotations(register::RotationsArgs),
 }
@@ -33,7 +33,7 @@ fn main() -> ExitCode {
         .with_target(false)
         .init();
     let outcome = match cli.command {
-        Command::Register(a) => register::run(a),
+        Command::Register(a) => register::run(*a),
         Command::Rotations(a) => register::run_rotations(a),
     };
     match outcome {

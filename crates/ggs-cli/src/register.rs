@@ -22,7 +22,7 @@ pub struct RegisterArgs {
     /// Target point cloud.
     pub target: PathBuf,
     /// Voxel size in the clouds' units; default: the target's longest side / 32.
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub voxel: Option<f64>,
     /// Built-in rotation set: limited15, full15, limited10, hopf15, hopf15-dedup, ico162-s10.
     #[arg(long, default_value = "limited15", conflicts_with = "rotations_file")]
@@ -105,8 +105,10 @@ fn progress_bar(len: usize, quiet: bool) -> ProgressBar {
     }
     let pb = ProgressBar::with_draw_target(Some(len as u64), ProgressDrawTarget::stderr());
     pb.set_style(
-        ProgressStyle::with_template("{spinner} rotations {bar:40} {pos}/{len} {per_sec} ETA {eta}")
-            .expect("valid template"),
+        ProgressStyle::with_template(
+            "{spinner} rotations {bar:40} {pos}/{len} {per_sec} ETA {eta}",
+        )
+        .expect("valid template"),
     );
     pb
 }
@@ -252,9 +254,19 @@ pub fn run_rotations(args: RotationsArgs) -> Result<()> {
                 .flat_map(|m| (0..3).flat_map(move |r| (0..3).map(move |c| m[(r, c)])))
                 .collect();
             io::npy::write_npy_3d(path, set.len(), &data)?;
-            println!("{}: {} rotations written to {}", set.name, set.len(), path.display());
+            println!(
+                "{}: {} rotations written to {}",
+                set.name,
+                set.len(),
+                path.display()
+            );
         }
-        None => println!("{}: {} rotations, step {}°", set.name, set.len(), set.step_deg),
+        None => println!(
+            "{}: {} rotations, step {}°",
+            set.name,
+            set.len(),
+            set.step_deg
+        ),
     }
     Ok(())
 }

@@ -120,7 +120,11 @@ mod tests {
 
     #[test]
     fn drops_non_finite() {
-        let mut c = Cloud::new(vec![[0.0, f64::NAN, 0.0], [1.0, 1.0, 1.0], [f64::INFINITY, 0.0, 0.0]]);
+        let mut c = Cloud::new(vec![
+            [0.0, f64::NAN, 0.0],
+            [1.0, 1.0, 1.0],
+            [f64::INFINITY, 0.0, 0.0],
+        ]);
         assert_eq!(c.drop_non_finite(), 2);
         assert_eq!(c.points, vec![[1.0, 1.0, 1.0]]);
     }

@@ -24,7 +24,9 @@ pub enum GgsError {
         message: String,
     },
     /// The file extension (or `--format`) names no format that ggs reads or writes.
-    #[error("{path}: unknown point-cloud format {what} (known: ply, pcd, xyz, txt, csv, pts, npy)")]
+    #[error(
+        "{path}: unknown point-cloud format {what} (known: ply, pcd, xyz, txt, csv, pts, npy)"
+    )]
     UnknownFormat { path: PathBuf, what: String },
     /// A cloud holds no usable point.
     #[error("{what}: the point cloud is empty{detail}")]

@@ -19,6 +19,9 @@
 //! # Ok::<(), ggs::GgsError>(())
 //! ```
 
+// Grid and matrix code indexes several arrays with one axis variable; iterators would hide it.
+#![allow(clippy::needless_range_loop)]
+
 pub mod cloud;
 pub mod correlate;
 pub mod error;

@@ -56,7 +56,11 @@ pub fn parse_manifest(path: &Path, base: &Path, text: &str) -> Result<Vec<Pair>>
         let ground_truth = Rigid::from_row_major(&nums, 1e-3)
             .map_err(|m| GgsError::at_line(path, n, format!("field T: {m}")))?;
         let voxel: f64 = f[5].trim().parse().map_err(|_| {
-            GgsError::at_line(path, n, format!("field suggested_voxel: '{}' is not a number", f[5]))
+            GgsError::at_line(
+                path,
+                n,
+                format!("field suggested_voxel: '{}' is not a number", f[5]),
+            )
         })?;
         if !(voxel.is_finite() && voxel > 0.0) {
             return Err(GgsError::at_line(
@@ -105,12 +109,21 @@ mod tests {
     #[test]
     fn errors_name_line_and_field() {
         let m = Path::new("m.tsv");
-        let e = parse_manifest(m, Path::new("."), "a\tb\n").unwrap_err().to_string();
-        assert!(e.contains("m.tsv: line 1") && e.contains("6 tab-separated"), "{e}");
-        let bad_t = "1 0 0 0 0 1 0 0 0 0 1 0 0 0 0";
-        let e = parse_manifest(m, Path::new("."), &format!("\nx\ts\tt\t{bad_t}\texact\t1\n"))
+        let e = parse_manifest(m, Path::new("."), "a\tb\n")
             .unwrap_err()
             .to_string();
+        assert!(
+            e.contains("m.tsv: line 1") && e.contains("6 tab-separated"),
+            "{e}"
+        );
+        let bad_t = "1 0 0 0 0 1 0 0 0 0 1 0 0 0 0";
+        let e = parse_manifest(
+            m,
+            Path::new("."),
+            &format!("\nx\ts\tt\t{bad_t}\texact\t1\n"),
+        )
+        .unwrap_err()
+        .to_string();
         assert!(e.contains("line 2") && e.contains("field T"), "{e}");
         let e = parse_manifest(m, Path::new("."), &format!("x\ts\tt\t{T}\texact\t-1\n"))
             .unwrap_err()

@@ -100,7 +100,11 @@ impl RotatableCloud {
     /// Exact `(min, max)` over points of `row · p` (for a unit `row`).
     pub fn range(&self, row: &[f64; 3]) -> (f64, f64) {
         let norm = (row[0] * row[0] + row[1] * row[1] + row[2] * row[2]).sqrt();
-        let centre_dot: Vec<f64> = self.clusters.iter().map(|c| dot_row(row, &c.centre)).collect();
+        let centre_dot: Vec<f64> = self
+            .clusters
+            .iter()
+            .map(|c| dot_row(row, &c.centre))
+            .collect();
         let slack = |c: &Cluster| c.radius * norm * (1.0 + 1e-12) + self.margin;
         let eval = |c: &Cluster, lo: &mut f64, hi: &mut f64| {
             for p in &self.points[c.start..c.end] {
@@ -142,7 +146,9 @@ mod tests {
     fn lcg_cloud(n: usize, seed: u64) -> Cloud {
         let mut s = seed;
         let mut next = || {
-            s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            s = s
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
             (s >> 11) as f64 / (1u64 << 53) as f64
         };
         Cloud::new(

@@ -159,7 +159,6 @@ pub struct SearchResult {
     pub timings: Timings,
 }
 
-
 fn rows(m: &Matrix3<f64>) -> [[f64; 3]; 3] {
     [
         [m[(0, 0)], m[(0, 1)], m[(0, 2)]],
@@ -189,7 +188,10 @@ pub fn coarse_register(
     let t_start = Instant::now();
     let s = cfg.voxel;
     if !(s.is_finite() && s > 0.0) {
-        return Err(GgsError::param("voxel", format!("must be a positive number, got {s}")));
+        return Err(GgsError::param(
+            "voxel",
+            format!("must be a positive number, got {s}"),
+        ));
     }
     if cfg.top_k == 0 {
         return Err(GgsError::param("top_k", "must be at least 1"));
@@ -291,8 +293,13 @@ pub fn coarse_register(
     let next = AtomicUsize::new(0);
     let done = AtomicUsize::new(0);
     let slots: Mutex<Vec<Option<BestOffset>>> = Mutex::new(vec![None; n_rot]);
-    let stats: Mutex<(Duration, Duration, Duration, Duration, f64)> =
-        Mutex::new((Duration::ZERO, Duration::ZERO, Duration::ZERO, Duration::ZERO, 0.0));
+    let stats: Mutex<(Duration, Duration, Duration, Duration, f64)> = Mutex::new((
+        Duration::ZERO,
+        Duration::ZERO,
+        Duration::ZERO,
+        Duration::ZERO,
+        0.0,
+    ));
     let cancelled = AtomicBool::new(false);
     pool.scope(|scope| {
         for _ in 0..threads {
@@ -331,11 +338,15 @@ pub fn coarse_register(
                         p(n);
                     }
                 }
-                let mut sl = slots.lock().expect("no worker panics while holding the lock");
+                let mut sl = slots
+                    .lock()
+                    .expect("no worker panics while holding the lock");
                 for (k, b) in local {
                     sl[k] = Some(b);
                 }
-                let mut st = stats.lock().expect("no worker panics while holding the lock");
+                let mut st = stats
+                    .lock()
+                    .expect("no worker panics while holding the lock");
                 st.0 += t_vox;
                 st.1 += ws.t_forward;
                 st.2 += ws.t_product;
@@ -353,7 +364,8 @@ pub fn coarse_register(
         .into_iter()
         .map(|b| b.expect("every rotation scored"))
         .collect();
-    let (cpu_vox, cpu_fwd, cpu_prod, cpu_inv, max_err) = stats.into_inner().expect("workers finished");
+    let (cpu_vox, cpu_fwd, cpu_prod, cpu_inv, max_err) =
+        stats.into_inner().expect("workers finished");
     let t_search = t2.elapsed();
 
     // Winner: highest match score, lowest index on ties.
@@ -363,9 +375,7 @@ pub fn coarse_register(
         let r = set.matrices[k];
         let mut t = -(r * Vector3::from(c_x));
         for d in 0..3 {
-            t[d] += -boxes[k].min[d]
-                + (geo.center[d] as f64 - b.offset[d] as f64) * s
-                + m_y[d];
+            t[d] += -boxes[k].min[d] + (geo.center[d] as f64 - b.offset[d] as f64) * s + m_y[d];
         }
         Hypothesis {
             rotation_index: k,
@@ -376,7 +386,12 @@ pub fn coarse_register(
         }
     };
     let mut order: Vec<usize> = (0..n_rot).collect();
-    order.sort_by(|&a, &b| best[b].match_score.cmp(&best[a].match_score).then(a.cmp(&b)));
+    order.sort_by(|&a, &b| {
+        best[b]
+            .match_score
+            .cmp(&best[a].match_score)
+            .then(a.cmp(&b))
+    });
     let winner = order[0];
     let radius = cfg.distinct_radius_deg.unwrap_or(2.0 * set.step_deg);
     let mut chosen: Vec<usize> = Vec::with_capacity(cfg.top_k);
@@ -473,6 +488,8 @@ impl MemoryModel {
         // Round up to 3 significant digits so the printed value still fits.
         let unit = 10f64.powf(suggested.log10().floor() - 2.0);
         let suggested = (suggested / unit).ceil() * unit;
+        let digits = (2.0 - suggested.log10().floor()).max(0.0) as usize;
+        let suggested = format!("{suggested:.digits$}");
         GgsError::MemoryBudget(format!(
             "the search needs about {} (FFT grid {}×{}×{} for kernel {}×{}×{} and source up to {}×{}×{}, {} thread(s)) but the budget is {}; use a voxel size of at least {} (now {voxel}), fewer threads, or raise --max-memory",
             memory::human_bytes(need),
@@ -481,7 +498,7 @@ impl MemoryModel {
             geo.source_max[0], geo.source_max[1], geo.source_max[2],
             self.threads,
             memory::human_bytes(budget),
-            format!("{:.*}", (2.0 - suggested.log10().floor()).max(0.0) as usize, suggested),
+            suggested,
         ))
     }
 }

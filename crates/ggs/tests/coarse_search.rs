@@ -30,7 +30,11 @@ fn random_cloud(seed: u64, n: usize) -> Cloud {
     let mut pts = Vec::with_capacity(n);
     for i in 0..n {
         let p = if i % 4 == 0 {
-            [0.8 + 0.1 * r.next_f64(), 0.1 * r.next_f64(), 0.3 + 0.1 * r.next_f64()]
+            [
+                0.8 + 0.1 * r.next_f64(),
+                0.1 * r.next_f64(),
+                0.3 + 0.1 * r.next_f64(),
+            ]
         } else {
             [r.next_f64(), 0.6 * r.next_f64(), 0.4 * r.next_f64()]
         };
@@ -154,7 +158,10 @@ fn memory_guard_stops_before_allocating() {
     let e = coarse_register(&source, &source, limited15(), &cfg)
         .unwrap_err()
         .to_string();
-    assert!(e.contains("budget") && e.contains("voxel size of at least"), "{e}");
+    assert!(
+        e.contains("budget") && e.contains("voxel size of at least"),
+        "{e}"
+    );
     // The suggested voxel fits.
     let suggested: f64 = e
         .split("voxel size of at least ")
@@ -183,9 +190,14 @@ fn bad_parameters_are_errors() {
         ..SearchConfig::with_voxel(0.1)
     };
     assert!(coarse_register(&c, &c, limited15(), &cfg).is_err());
-    let e = coarse_register(&Cloud::default(), &c, limited15(), &SearchConfig::with_voxel(0.1))
-        .unwrap_err()
-        .to_string();
+    let e = coarse_register(
+        &Cloud::default(),
+        &c,
+        limited15(),
+        &SearchConfig::with_voxel(0.1),
+    )
+    .unwrap_err()
+    .to_string();
     assert!(e.contains("source") && e.contains("empty"), "{e}");
 }
 

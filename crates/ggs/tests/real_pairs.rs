@@ -47,7 +47,8 @@ fn coarse_search_on_real_pairs() {
     let pairs = read_manifest(&shared.join("data/pairs.tsv")).unwrap();
     assert_eq!(pairs.len(), 13);
     // (set, pairs to run (None = all), extra pairs it must solve)
-    let plan: [(&str, Option<&[&str]>, &[&str]); 3] = [
+    type Plan<'a> = (&'a str, Option<&'a [&'a str]>, &'a [&'a str]);
+    let plan: [Plan; 3] = [
         ("limited15", None, &[]),
         ("ico162-s10", None, &[]),
         // A uniform full-SO(3) set reaches the 178° pair that the limited set cannot.
@@ -74,8 +75,13 @@ fn coarse_search_on_real_pairs() {
             let source = read_cloud(&pair.source, None).unwrap().cloud;
             let target = read_cloud(&pair.target, None).unwrap().cloud;
             let t0 = Instant::now();
-            let r = coarse_register(&source, &target, &set, &SearchConfig::with_voxel(pair.voxel))
-                .unwrap();
+            let r = coarse_register(
+                &source,
+                &target,
+                &set,
+                &SearchConfig::with_voxel(pair.voxel),
+            )
+            .unwrap();
             let secs = t0.elapsed().as_secs_f64();
             let gt = &pair.ground_truth;
             let (e_r, e_t) = (rre(&r.transform, gt), rte(&r.transform, gt));
@@ -114,5 +120,9 @@ fn coarse_search_on_real_pairs() {
         }
     }
     eprintln!("\n{table}");
-    assert!(failures.is_empty(), "pairs outside their bound:\n{}", failures.join("\n"));
+    assert!(
+        failures.is_empty(),
+        "pairs outside their bound:\n{}",
+        failures.join("\n")
+    );
 }

@@ -13,12 +13,20 @@ fn compare(name: &str, file: &str) {
     let set = RotationSet::named(name).unwrap();
     assert_eq!(reference.shape, vec![set.len(), 3, 3], "{name}: row count");
     let mut worst = 0.0f64;
-    for (i, (m, r)) in set.matrices.iter().zip(reference.data.chunks_exact(9)).enumerate() {
+    for (i, (m, r)) in set
+        .matrices
+        .iter()
+        .zip(reference.data.chunks_exact(9))
+        .enumerate()
+    {
         for row in 0..3 {
             for col in 0..3 {
                 let d = (m[(row, col)] - r[row * 3 + col]).abs();
                 worst = worst.max(d);
-                assert!(d <= 1e-12, "{name} row {i} entry ({row},{col}) differs by {d:e}");
+                assert!(
+                    d <= 1e-12,
+                    "{name} row {i} entry ({row},{col}) differs by {d:e}"
+                );
             }
         }
     }

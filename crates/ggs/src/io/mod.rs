@@ -94,7 +94,10 @@ pub fn read_cloud(path: &Path, format: Option<Format>) -> Result<LoadedCloud> {
             if a.shape.len() != 2 || a.shape[1] < 3 {
                 return Err(GgsError::in_file(
                     path,
-                    format!("expected an array of shape [N, 3] or [N, k≥3], found {:?}", a.shape),
+                    format!(
+                        "expected an array of shape [N, 3] or [N, k≥3], found {:?}",
+                        a.shape
+                    ),
                 ));
             }
             let k = a.shape[1];
@@ -179,7 +182,10 @@ mod tests {
             "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty float z\nend_header\n1 2 3\n",
         )
         .unwrap();
-        assert_eq!(read_cloud(&p, None).unwrap().cloud.points, vec![[1.0, 2.0, 3.0]]);
+        assert_eq!(
+            read_cloud(&p, None).unwrap().cloud.points,
+            vec![[1.0, 2.0, 3.0]]
+        );
         std::fs::remove_dir_all(&d).unwrap();
     }
 
@@ -195,7 +201,10 @@ mod tests {
         let e = read_cloud(&p, None).unwrap_err().to_string();
         assert!(e.contains("empty") && e.contains("NaN"), "{e}");
         std::fs::write(&p, "").unwrap();
-        assert!(matches!(read_cloud(&p, None), Err(GgsError::EmptyCloud { .. })));
+        assert!(matches!(
+            read_cloud(&p, None),
+            Err(GgsError::EmptyCloud { .. })
+        ));
         let missing = d.join("missing.ply");
         let e = read_cloud(&missing, None).unwrap_err().to_string();
         assert!(e.contains("missing.ply"), "{e}");

@@ -19,7 +19,11 @@ pub fn read_npy(path: &Path) -> Result<NpyArray> {
 /// Parse the bytes of a `.npy` file; `path` is used in error messages only.
 pub fn parse_npy(path: &Path, bytes: &[u8]) -> Result<NpyArray> {
     if bytes.len() < 10 || &bytes[..6] != b"\x93NUMPY" {
-        return Err(GgsError::at_byte(path, 0, "not a .npy file (magic \\x93NUMPY missing)"));
+        return Err(GgsError::at_byte(
+            path,
+            0,
+            "not a .npy file (magic \\x93NUMPY missing)",
+        ));
     }
     let major = bytes[6];
     let (header_len, start) = match major {
@@ -144,7 +148,9 @@ fn parse_descr(d: &str) -> Option<(bool, Kind, usize)> {
     };
     let size: usize = chars.as_str().parse().ok()?;
     match (kind, size) {
-        (Kind::Float, 4 | 8) | (Kind::Int | Kind::Uint, 1 | 2 | 4 | 8) => Some((little, kind, size)),
+        (Kind::Float, 4 | 8) | (Kind::Int | Kind::Uint, 1 | 2 | 4 | 8) => {
+            Some((little, kind, size))
+        }
         _ => None,
     }
 }
@@ -235,11 +241,21 @@ mod tests {
 
     #[test]
     fn reads_f4_and_f8() {
-        let body: Vec<u8> = [1.0f32, 2.0, 3.0].iter().flat_map(|v| v.to_le_bytes()).collect();
-        let a = parse_npy(Path::new("a.npy"), &npy_bytes("<f4", "(1, 3)", false, &body)).unwrap();
+        let body: Vec<u8> = [1.0f32, 2.0, 3.0]
+            .iter()
+            .flat_map(|v| v.to_le_bytes())
+            .collect();
+        let a = parse_npy(
+            Path::new("a.npy"),
+            &npy_bytes("<f4", "(1, 3)", false, &body),
+        )
+        .unwrap();
         assert_eq!(a.shape, vec![1, 3]);
         assert_eq!(a.data, vec![1.0, 2.0, 3.0]);
-        let body: Vec<u8> = [1.5f64, -2.0].iter().flat_map(|v| v.to_be_bytes()).collect();
+        let body: Vec<u8> = [1.5f64, -2.0]
+            .iter()
+            .flat_map(|v| v.to_be_bytes())
+            .collect();
         let a = parse_npy(Path::new("a.npy"), &npy_bytes(">f8", "(2,)", false, &body)).unwrap();
         assert_eq!(a.data, vec![1.5, -2.0]);
     }

@@ -25,9 +25,15 @@ pub fn parse_pcd(path: &Path, bytes: &[u8]) -> Result<Vec<Point>> {
     let data_kind: String;
     loop {
         let Some(nl) = bytes[pos..].iter().position(|&b| b == b'\n') else {
-            return Err(GgsError::at_line(path, line_no + 1, "the header ends before its 'DATA' line"));
+            return Err(GgsError::at_line(
+                path,
+                line_no + 1,
+                "the header ends before its 'DATA' line",
+            ));
         };
-        let line = String::from_utf8_lossy(&bytes[pos..pos + nl]).trim().to_string();
+        let line = String::from_utf8_lossy(&bytes[pos..pos + nl])
+            .trim()
+            .to_string();
         pos += nl + 1;
         line_no += 1;
         if line.is_empty() || line.starts_with('#') {
@@ -37,8 +43,13 @@ pub fn parse_pcd(path: &Path, bytes: &[u8]) -> Result<Vec<Point>> {
         let key = tok.next().unwrap_or("").to_ascii_uppercase();
         let rest: Vec<&str> = tok.collect();
         let parse_usize = |t: &str| {
-            t.parse::<usize>()
-                .map_err(|_| GgsError::at_line(path, line_no, format!("'{t}' is not a non-negative integer ({key})")))
+            t.parse::<usize>().map_err(|_| {
+                GgsError::at_line(
+                    path,
+                    line_no,
+                    format!("'{t}' is not a non-negative integer ({key})"),
+                )
+            })
         };
         match key.as_str() {
             "VERSION" | "VIEWPOINT" => {}
@@ -49,7 +60,11 @@ pub fn parse_pcd(path: &Path, bytes: &[u8]) -> Result<Vec<Point>> {
                     .iter()
                     .map(|t| match *t {
                         "F" | "I" | "U" => Ok(t.as_bytes()[0]),
-                        _ => Err(GgsError::at_line(path, line_no, format!("unknown TYPE '{t}' (expected F, I or U)"))),
+                        _ => Err(GgsError::at_line(
+                            path,
+                            line_no,
+                            format!("unknown TYPE '{t}' (expected F, I or U)"),
+                        )),
                     })
                     .collect::<Result<_>>()?
             }
@@ -62,7 +77,11 @@ pub fn parse_pcd(path: &Path, bytes: &[u8]) -> Result<Vec<Point>> {
                 break;
             }
             _ => {
-                return Err(GgsError::at_line(path, line_no, format!("unknown header keyword '{key}'")));
+                return Err(GgsError::at_line(
+                    path,
+                    line_no,
+                    format!("unknown header keyword '{key}'"),
+                ));
             }
         }
     }
@@ -85,18 +104,37 @@ pub fn parse_pcd(path: &Path, bytes: &[u8]) -> Result<Vec<Point>> {
         ));
     }
     let fields: Vec<Field> = (0..names.len())
-        .map(|i| Field { name: names[i].clone(), size: sizes[i], kind: types[i], count: counts[i] })
+        .map(|i| Field {
+            name: names[i].clone(),
+            size: sizes[i],
+            kind: types[i],
+            count: counts[i],
+        })
         .collect();
     for f in &fields {
-        let ok = matches!((f.kind, f.size), (b'F', 4 | 8) | (b'I' | b'U', 1 | 2 | 4 | 8));
+        let ok = matches!(
+            (f.kind, f.size),
+            (b'F', 4 | 8) | (b'I' | b'U', 1 | 2 | 4 | 8)
+        );
         if !ok {
-            return Err(GgsError::in_file(path, format!("field '{}': unsupported TYPE {} with SIZE {}", f.name, f.kind as char, f.size)));
+            return Err(GgsError::in_file(
+                path,
+                format!(
+                    "field '{}': unsupported TYPE {} with SIZE {}",
+                    f.name, f.kind as char, f.size
+                ),
+            ));
         }
     }
     let n = match (points, width) {
         (Some(p), _) => p,
         (None, Some(w)) => w * height,
-        (None, None) => return Err(GgsError::in_file(path, "the header has neither POINTS nor WIDTH")),
+        (None, None) => {
+            return Err(GgsError::in_file(
+                path,
+                "the header has neither POINTS nor WIDTH",
+            ))
+        }
     };
     let xyz: Vec<usize> = ["x", "y", "z"]
         .iter()
@@ -112,7 +150,11 @@ pub fn parse_pcd(path: &Path, bytes: &[u8]) -> Result<Vec<Point>> {
         "ascii" => read_ascii(path, data, line_no, &fields, &xyz, n),
         "binary" => read_binary(path, data, pos, &fields, &xyz, n),
         "binary_compressed" => read_compressed(path, data, pos, &fields, &xyz, n),
-        other => Err(GgsError::at_line(path, line_no, format!("unknown DATA '{other}' (expected ascii, binary or binary_compressed)"))),
+        other => Err(GgsError::at_line(
+            path,
+            line_no,
+            format!("unknown DATA '{other}' (expected ascii, binary or binary_compressed)"),
+        )),
     }
 }
 
@@ -131,7 +173,14 @@ fn decode(f: &Field, b: &[u8]) -> f64 {
     }
 }
 
-fn read_ascii(path: &Path, data: &[u8], header_lines: usize, fields: &[Field], xyz: &[usize], n: usize) -> Result<Vec<Point>> {
+fn read_ascii(
+    path: &Path,
+    data: &[u8],
+    header_lines: usize,
+    fields: &[Field],
+    xyz: &[usize],
+    n: usize,
+) -> Result<Vec<Point>> {
     // Token index of the first value of each field.
     let mut first = Vec::with_capacity(fields.len());
     let mut t = 0;
@@ -146,7 +195,8 @@ fn read_ascii(path: &Path, data: &[u8], header_lines: usize, fields: &[Field], x
             break;
         }
         let line_no = header_lines + li + 1;
-        let line = std::str::from_utf8(raw).map_err(|_| GgsError::at_line(path, line_no, "not valid text"))?;
+        let line = std::str::from_utf8(raw)
+            .map_err(|_| GgsError::at_line(path, line_no, "not valid text"))?;
         if line.trim().is_empty() {
             continue;
         }
@@ -154,14 +204,26 @@ fn read_ascii(path: &Path, data: &[u8], header_lines: usize, fields: &[Field], x
         let mut p = [0.0; 3];
         for d in 0..3 {
             let tok = toks.get(cols[d]).ok_or_else(|| {
-                GgsError::at_line(path, line_no, format!("expected {t} values, found {}", toks.len()))
+                GgsError::at_line(
+                    path,
+                    line_no,
+                    format!("expected {t} values, found {}", toks.len()),
+                )
             })?;
-            p[d] = parse_pcd_number(tok).ok_or_else(|| GgsError::at_line(path, line_no, format!("'{tok}' is not a number")))?;
+            p[d] = parse_pcd_number(tok).ok_or_else(|| {
+                GgsError::at_line(path, line_no, format!("'{tok}' is not a number"))
+            })?;
         }
         out.push(p);
     }
     if out.len() < n {
-        return Err(GgsError::in_file(path, format!("truncated: the header declares {n} points, the file holds {}", out.len())));
+        return Err(GgsError::in_file(
+            path,
+            format!(
+                "truncated: the header declares {n} points, the file holds {}",
+                out.len()
+            ),
+        ));
     }
     Ok(out)
 }
@@ -171,19 +233,31 @@ fn parse_pcd_number(t: &str) -> Option<f64> {
     t.parse::<f64>().ok()
 }
 
-fn read_binary(path: &Path, data: &[u8], offset: usize, fields: &[Field], xyz: &[usize], n: usize) -> Result<Vec<Point>> {
+fn read_binary(
+    path: &Path,
+    data: &[u8],
+    offset: usize,
+    fields: &[Field],
+    xyz: &[usize],
+    n: usize,
+) -> Result<Vec<Point>> {
     let mut field_off = Vec::with_capacity(fields.len());
     let mut stride = 0;
     for f in fields {
         field_off.push(stride);
         stride += f.size * f.count;
     }
-    let need = stride.checked_mul(n).ok_or_else(|| GgsError::in_file(path, "POINTS too large"))?;
+    let need = stride
+        .checked_mul(n)
+        .ok_or_else(|| GgsError::in_file(path, "POINTS too large"))?;
     if data.len() < need {
         return Err(GgsError::at_byte(
             path,
             (offset + data.len()) as u64,
-            format!("truncated: {n} points of {stride} bytes need {need} bytes of data, found {}", data.len()),
+            format!(
+                "truncated: {n} points of {stride} bytes need {need} bytes of data, found {}",
+                data.len()
+            ),
         ));
     }
     let mut out = Vec::with_capacity(n);
@@ -198,16 +272,36 @@ fn read_binary(path: &Path, data: &[u8], offset: usize, fields: &[Field], xyz: &
     Ok(out)
 }
 
-fn read_compressed(path: &Path, data: &[u8], offset: usize, fields: &[Field], xyz: &[usize], n: usize) -> Result<Vec<Point>> {
+fn read_compressed(
+    path: &Path,
+    data: &[u8],
+    offset: usize,
+    fields: &[Field],
+    xyz: &[usize],
+    n: usize,
+) -> Result<Vec<Point>> {
     if data.len() < 8 {
-        return Err(GgsError::at_byte(path, offset as u64, "truncated: binary_compressed data needs an 8-byte size header"));
+        return Err(GgsError::at_byte(
+            path,
+            offset as u64,
+            "truncated: binary_compressed data needs an 8-byte size header",
+        ));
     }
     let csize = u32::from_le_bytes(data[0..4].try_into().unwrap()) as usize;
     let usize_ = u32::from_le_bytes(data[4..8].try_into().unwrap()) as usize;
     let comp = data.get(8..8 + csize).ok_or_else(|| {
-        GgsError::at_byte(path, (offset + 8) as u64, format!("truncated: compressed block of {csize} bytes, {} present", data.len() - 8))
+        GgsError::at_byte(
+            path,
+            (offset + 8) as u64,
+            format!(
+                "truncated: compressed block of {csize} bytes, {} present",
+                data.len() - 8
+            ),
+        )
     })?;
-    let raw = lzf_decompress(comp, usize_).map_err(|m| GgsError::at_byte(path, (offset + 8) as u64, format!("corrupt LZF data: {m}")))?;
+    let raw = lzf_decompress(comp, usize_).map_err(|m| {
+        GgsError::at_byte(path, (offset + 8) as u64, format!("corrupt LZF data: {m}"))
+    })?;
     // Column layout: every field's values for all points, field after field.
     let mut field_off = Vec::with_capacity(fields.len());
     let mut o = 0usize;
@@ -216,7 +310,13 @@ fn read_compressed(path: &Path, data: &[u8], offset: usize, fields: &[Field], xy
         o += f.size * f.count * n;
     }
     if raw.len() < o {
-        return Err(GgsError::in_file(path, format!("decompressed data holds {} bytes, {n} points need {o}", raw.len())));
+        return Err(GgsError::in_file(
+            path,
+            format!(
+                "decompressed data holds {} bytes, {n} points need {o}",
+                raw.len()
+            ),
+        ));
     }
     let mut out = Vec::with_capacity(n);
     for i in 0..n {
@@ -240,7 +340,9 @@ pub fn lzf_decompress(input: &[u8], out_len: usize) -> std::result::Result<Vec<u
         i += 1;
         if ctrl < 32 {
             let len = ctrl + 1;
-            let lit = input.get(i..i + len).ok_or("literal run past the end of the input")?;
+            let lit = input
+                .get(i..i + len)
+                .ok_or("literal run past the end of the input")?;
             if out.len() + len > out_len {
                 return Err("output longer than declared".into());
             }
@@ -270,7 +372,10 @@ pub fn lzf_decompress(input: &[u8], out_len: usize) -> std::result::Result<Vec<u
         }
     }
     if out.len() != out_len {
-        return Err(format!("decompressed {} bytes, header says {out_len}", out.len()));
+        return Err(format!(
+            "decompressed {} bytes, header says {out_len}",
+            out.len()
+        ));
     }
     Ok(out)
 }
@@ -284,7 +389,10 @@ mod tests {
     #[test]
     fn ascii_v5_without_viewpoint() {
         let s = "# .PCD v.5\nVERSION .5\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 2\nHEIGHT 1\nPOINTS 2\nDATA ascii\n1 2 3\n4 5 6\n";
-        assert_eq!(parse_pcd(Path::new(P), s.as_bytes()).unwrap(), vec![[1.0, 2.0, 3.0], [4.0, 5.0, 6.0]]);
+        assert_eq!(
+            parse_pcd(Path::new(P), s.as_bytes()).unwrap(),
+            vec![[1.0, 2.0, 3.0], [4.0, 5.0, 6.0]]
+        );
     }
 
     #[test]
@@ -296,7 +404,10 @@ mod tests {
             b.extend_from_slice(&y.to_le_bytes());
             b.extend_from_slice(&z.to_le_bytes());
         }
-        assert_eq!(parse_pcd(Path::new(P), &b).unwrap(), vec![[1.0, 2.0, 3.0], [4.0, 5.0, 6.0]]);
+        assert_eq!(
+            parse_pcd(Path::new(P), &b).unwrap(),
+            vec![[1.0, 2.0, 3.0], [4.0, 5.0, 6.0]]
+        );
         b.truncate(b.len() - 3);
         let e = parse_pcd(Path::new(P), &b).unwrap_err().to_string();
         assert!(e.contains("truncated") && e.contains("byte"), "{e}");
@@ -314,7 +425,10 @@ mod tests {
         b.extend_from_slice(&(comp.len() as u32).to_le_bytes());
         b.extend_from_slice(&(raw.len() as u32).to_le_bytes());
         b.extend_from_slice(&comp);
-        assert_eq!(parse_pcd(Path::new(P), &b).unwrap(), vec![[1.0, 2.0, 3.0], [4.0, 5.0, 6.0]]);
+        assert_eq!(
+            parse_pcd(Path::new(P), &b).unwrap(),
+            vec![[1.0, 2.0, 3.0], [4.0, 5.0, 6.0]]
+        );
     }
 
     #[test]
@@ -328,15 +442,37 @@ mod tests {
     #[test]
     fn errors() {
         let p = Path::new(P);
-        let e = parse_pcd(p, b"FIELDS x y\nSIZE 4 4\nTYPE F F\nCOUNT 1 1\nPOINTS 1\nDATA ascii\n1 2\n").unwrap_err().to_string();
+        let e = parse_pcd(
+            p,
+            b"FIELDS x y\nSIZE 4 4\nTYPE F F\nCOUNT 1 1\nPOINTS 1\nDATA ascii\n1 2\n",
+        )
+        .unwrap_err()
+        .to_string();
         assert!(e.contains("no field 'z'"), "{e}");
-        let e = parse_pcd(p, b"FIELDS x y z\nSIZE 4 4 4\nTYPE F F Q\n").unwrap_err().to_string();
+        let e = parse_pcd(p, b"FIELDS x y z\nSIZE 4 4 4\nTYPE F F Q\n")
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("line 3") && e.contains("unknown TYPE"), "{e}");
-        let e = parse_pcd(p, b"FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nPOINTS 2\nDATA ascii\n1 2 3\n").unwrap_err().to_string();
+        let e = parse_pcd(
+            p,
+            b"FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nPOINTS 2\nDATA ascii\n1 2 3\n",
+        )
+        .unwrap_err()
+        .to_string();
         assert!(e.contains("truncated"), "{e}");
-        let e = parse_pcd(p, b"FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nPOINTS 1\nDATA ascii\n1 x 3\n").unwrap_err().to_string();
-        assert!(e.contains("line 7") && e.contains("'x' is not a number"), "{e}");
-        let e = parse_pcd(p, b"FIELDS x y z\nBOGUS 1\n").unwrap_err().to_string();
+        let e = parse_pcd(
+            p,
+            b"FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nPOINTS 1\nDATA ascii\n1 x 3\n",
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.contains("line 7") && e.contains("'x' is not a number"),
+            "{e}"
+        );
+        let e = parse_pcd(p, b"FIELDS x y z\nBOGUS 1\n")
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("line 2"), "{e}");
     }
 }

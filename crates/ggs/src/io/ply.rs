@@ -204,7 +204,10 @@ pub fn parse_ply(path: &Path, bytes: &[u8]) -> Result<Vec<Point>> {
                 .iter()
                 .position(|p| matches!(p, Property::Scalar(_, name) if name == n))
                 .ok_or_else(|| {
-                    GgsError::in_file(path, format!("the vertex element has no scalar property '{n}'"))
+                    GgsError::in_file(
+                        path,
+                        format!("the vertex element has no scalar property '{n}'"),
+                    )
                 })
         })
         .collect::<Result<_>>()?;
@@ -215,7 +218,13 @@ pub fn parse_ply(path: &Path, bytes: &[u8]) -> Result<Vec<Point>> {
     }
 }
 
-fn read_ascii(path: &Path, bytes: &[u8], h: &Header, vi: usize, xyz: &[usize]) -> Result<Vec<Point>> {
+fn read_ascii(
+    path: &Path,
+    bytes: &[u8],
+    h: &Header,
+    vi: usize,
+    xyz: &[usize],
+) -> Result<Vec<Point>> {
     let text = &bytes[h.data_start..];
     let mut lines = text
         .split(|&b| b == b'\n')
@@ -247,7 +256,11 @@ fn read_ascii(path: &Path, bytes: &[u8], h: &Header, vi: usize, xyz: &[usize]) -
                         GgsError::at_line(path, line_no, format!("missing value for '{what}'"))
                     })?;
                     t.parse::<f64>().map_err(|_| {
-                        GgsError::at_line(path, line_no, format!("'{t}' is not a number ('{what}')"))
+                        GgsError::at_line(
+                            path,
+                            line_no,
+                            format!("'{t}' is not a number ('{what}')"),
+                        )
                     })
                 };
                 match prop {
@@ -319,7 +332,9 @@ fn read_binary(
                 match prop {
                     Property::Scalar(t, _) => {
                         let s = t.size();
-                        let b = bytes.get(pos..pos + s).ok_or_else(|| truncated(pos, el, row))?;
+                        let b = bytes
+                            .get(pos..pos + s)
+                            .ok_or_else(|| truncated(pos, el, row))?;
                         if ei == vi {
                             if let Some(d) = xyz.iter().position(|&x| x == pi) {
                                 vals[d] = t.decode(b, little);
@@ -329,7 +344,9 @@ fn read_binary(
                     }
                     Property::List(ct, it, _) => {
                         let s = ct.size();
-                        let b = bytes.get(pos..pos + s).ok_or_else(|| truncated(pos, el, row))?;
+                        let b = bytes
+                            .get(pos..pos + s)
+                            .ok_or_else(|| truncated(pos, el, row))?;
                         let n = ct.decode(b, little);
                         if !(0.0..=1e9).contains(&n) {
                             return Err(GgsError::at_byte(
@@ -429,17 +446,37 @@ mod tests {
     #[test]
     fn binary_both_endians_with_element_before_vertex() {
         for little in [true, false] {
-            let fmt = if little { "binary_little_endian" } else { "binary_big_endian" };
+            let fmt = if little {
+                "binary_little_endian"
+            } else {
+                "binary_big_endian"
+            };
             let mut b = format!("ply\nformat {fmt} 1.0\nelement camera 1\nproperty list uchar int idx\nelement vertex 2\nproperty double x\nproperty float y\nproperty short z\nend_header\n").into_bytes();
             // camera: list of 2 ints
             b.push(2);
             for v in [7i32, 8] {
-                b.extend_from_slice(&if little { v.to_le_bytes() } else { v.to_be_bytes() });
+                b.extend_from_slice(&if little {
+                    v.to_le_bytes()
+                } else {
+                    v.to_be_bytes()
+                });
             }
             for (x, y, z) in [(1.5f64, 2.5f32, -3i16), (4.0, 5.0, 6)] {
-                b.extend_from_slice(&if little { x.to_le_bytes() } else { x.to_be_bytes() });
-                b.extend_from_slice(&if little { y.to_le_bytes() } else { y.to_be_bytes() });
-                b.extend_from_slice(&if little { z.to_le_bytes() } else { z.to_be_bytes() });
+                b.extend_from_slice(&if little {
+                    x.to_le_bytes()
+                } else {
+                    x.to_be_bytes()
+                });
+                b.extend_from_slice(&if little {
+                    y.to_le_bytes()
+                } else {
+                    y.to_be_bytes()
+                });
+                b.extend_from_slice(&if little {
+                    z.to_le_bytes()
+                } else {
+                    z.to_be_bytes()
+                });
             }
             let pts = parse_ply(Path::new(P), &b).unwrap();
             assert_eq!(pts, vec![[1.5, 2.5, -3.0], [4.0, 5.0, 6.0]]);
@@ -451,7 +488,9 @@ mod tests {
         let p = Path::new(P);
         let e = parse_ply(p, b"plx\n").unwrap_err().to_string();
         assert!(e.contains("line 1"), "{e}");
-        let e = parse_ply(p, b"ply\nformat ascii 1.0\nelement vertex 1\n").unwrap_err().to_string();
+        let e = parse_ply(p, b"ply\nformat ascii 1.0\nelement vertex 1\n")
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("end_header"), "{e}");
         let e = parse_ply(p, b"ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nend_header\n1 2\n")
             .unwrap_err()
@@ -460,7 +499,10 @@ mod tests {
         let e = parse_ply(p, b"ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\nproperty float z\nend_header\n1 2 3\n1 b 3\n")
             .unwrap_err()
             .to_string();
-        assert!(e.contains("line 9") && e.contains("'b' is not a number"), "{e}");
+        assert!(
+            e.contains("line 9") && e.contains("'b' is not a number"),
+            "{e}"
+        );
         let e = parse_ply(p, b"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nend_header\n1 2 3\n")
             .unwrap_err()
             .to_string();
@@ -469,7 +511,9 @@ mod tests {
         b.extend_from_slice(&[0u8; 16]);
         let e = parse_ply(p, &b).unwrap_err().to_string();
         assert!(e.contains("truncated") && e.contains("byte"), "{e}");
-        let e = parse_ply(p, b"ply\nformat binary 1.0\nend_header\n").unwrap_err().to_string();
+        let e = parse_ply(p, b"ply\nformat binary 1.0\nend_header\n")
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("unknown format"), "{e}");
     }
 
@@ -480,7 +524,13 @@ mod tests {
         let pts = vec![[0.1, -2.0, 3.25], [1e-9, 7.0, -0.0]];
         for ascii in [false, true] {
             let p = dir.join(format!("a{ascii}.ply"));
-            write_ply(&p, &pts, Some(&[[255, 0, 0], [0, 255, 0]]), PlyWriteOptions { ascii }).unwrap();
+            write_ply(
+                &p,
+                &pts,
+                Some(&[[255, 0, 0], [0, 255, 0]]),
+                PlyWriteOptions { ascii },
+            )
+            .unwrap();
             let back = parse_ply(&p, &std::fs::read(&p).unwrap()).unwrap();
             assert_eq!(back, pts);
         }

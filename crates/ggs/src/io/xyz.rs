@@ -17,9 +17,8 @@ fn split(line: &str) -> impl Iterator<Item = &str> {
 
 /// Read points from delimited text.
 pub fn parse_xyz(path: &Path, bytes: &[u8]) -> Result<Vec<Point>> {
-    let text = std::str::from_utf8(bytes).map_err(|e| {
-        GgsError::at_byte(path, e.valid_up_to() as u64, "not valid UTF-8 text")
-    })?;
+    let text = std::str::from_utf8(bytes)
+        .map_err(|e| GgsError::at_byte(path, e.valid_up_to() as u64, "not valid UTF-8 text"))?;
     let mut cols = [0usize, 1, 2];
     let mut out = Vec::new();
     let mut seen_data_or_header = false;
@@ -60,7 +59,11 @@ pub fn parse_xyz(path: &Path, bytes: &[u8]) -> Result<Vec<Point>> {
                 GgsError::at_line(
                     path,
                     line_no,
-                    format!("expected at least {} values, found {}", cols[d] + 1, toks.len()),
+                    format!(
+                        "expected at least {} values, found {}",
+                        cols[d] + 1,
+                        toks.len()
+                    ),
                 )
             })?;
             p[d] = tok.parse::<f64>().map_err(|_| {
@@ -90,7 +93,10 @@ mod tests {
     #[test]
     fn header_with_reordered_columns() {
         let s = "intensity z y x\n9 3 2 1\n";
-        assert_eq!(parse_xyz(Path::new(P), s.as_bytes()).unwrap(), vec![[1.0, 2.0, 3.0]]);
+        assert_eq!(
+            parse_xyz(Path::new(P), s.as_bytes()).unwrap(),
+            vec![[1.0, 2.0, 3.0]]
+        );
     }
 
     #[test]
@@ -104,9 +110,13 @@ mod tests {
 
     #[test]
     fn errors_name_the_line() {
-        let e = parse_xyz(Path::new(P), b"1 2 3\n4 5\n").unwrap_err().to_string();
+        let e = parse_xyz(Path::new(P), b"1 2 3\n4 5\n")
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("line 2") && e.contains("t.csv"), "{e}");
-        let e = parse_xyz(Path::new(P), b"1 2 3\n4 5 zz\n").unwrap_err().to_string();
+        let e = parse_xyz(Path::new(P), b"1 2 3\n4 5 zz\n")
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("line 2") && e.contains("'zz'"), "{e}");
         let e = parse_xyz(Path::new(P), b"a b\n").unwrap_err().to_string();
         assert!(e.contains("line 1"), "{e}");

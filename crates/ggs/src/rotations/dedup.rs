@@ -12,7 +12,9 @@ pub fn dedup_geodesic(rotations: &[Matrix3<f64>], tol_deg: f64) -> Vec<usize> {
     let max_sq = (2.0 * 2f64.sqrt() * (tol_deg.to_radians() / 2.0).sin() + 1e-13).powi(2);
     let mut kept: Vec<usize> = Vec::new();
     for (i, r) in rotations.iter().enumerate() {
-        let duplicate = kept.iter().any(|&j| (rotations[j] - r).norm_squared() <= max_sq);
+        let duplicate = kept
+            .iter()
+            .any(|&j| (rotations[j] - r).norm_squared() <= max_sq);
         if !duplicate {
             kept.push(i);
         }

@@ -81,7 +81,11 @@ mod tests {
 
     #[test]
     fn is_transpose_of_xyz_product() {
-        for (a, b, g) in [(15.0, -30.0, 45.0), (90.0, 75.0, 330.0), (0.0, -90.0, 270.0)] {
+        for (a, b, g) in [
+            (15.0, -30.0, 45.0),
+            (90.0, 75.0, 330.0),
+            (0.0, -90.0, 270.0),
+        ] {
             let m = euler_matrix(a, b, g);
             let n = (rot_x(a) * rot_y(b) * rot_z(g)).transpose();
             assert!((m - n).abs().max() < 1e-15);

@@ -70,7 +70,10 @@ impl RotationSet {
             _ => {
                 return Err(GgsError::param(
                     "rotations",
-                    format!("unknown rotation set '{name}' (known: {})", NAMES.join(", ")),
+                    format!(
+                        "unknown rotation set '{name}' (known: {})",
+                        NAMES.join(", ")
+                    ),
                 ))
             }
         };
@@ -88,7 +91,10 @@ impl RotationSet {
         if arr.shape.len() != 3 || arr.shape[1] != 3 || arr.shape[2] != 3 {
             return Err(GgsError::in_file(
                 path,
-                format!("expected an array of shape [N, 3, 3], found {:?}", arr.shape),
+                format!(
+                    "expected an array of shape [N, 3, 3], found {:?}",
+                    arr.shape
+                ),
             ));
         }
         if arr.shape[0] == 0 {
@@ -183,7 +189,10 @@ pub fn median_nearest_angle(rotations: &[Matrix3<f64>]) -> f64 {
                     best_trace = t;
                 }
             }
-            ((best_trace - 1.0) / 2.0).clamp(-1.0, 1.0).acos().to_degrees()
+            ((best_trace - 1.0) / 2.0)
+                .clamp(-1.0, 1.0)
+                .acos()
+                .to_degrees()
         })
         .collect();
     nearest.sort_by(f64::total_cmp);

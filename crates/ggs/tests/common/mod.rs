@@ -18,7 +18,10 @@ pub fn shared_dir() -> Option<PathBuf> {
         return Some(dir);
     }
     if std::env::var_os("GGS_SKIP_SHARED").is_some_and(|v| v == "1") {
-        eprintln!("skipping: {} not found and GGS_SKIP_SHARED=1", dir.display());
+        eprintln!(
+            "skipping: {} not found and GGS_SKIP_SHARED=1",
+            dir.display()
+        );
         return None;
     }
     panic!(

@@ -1,0 +1,229 @@
+//! End-to-end tests of the `ggs` binary on the bundled PCL bunny pair.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn data(name: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../../tests/data")
+        .join(name)
+}
+
+fn ggs(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_ggs"))
+        .args(args)
+        .output()
+        .expect("run ggs")
+}
+
+fn tmp(tag: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("ggs-cli-{tag}-{}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+fn matrix_from_text(text: &str) -> Vec<f64> {
+    text.lines()
+        .take(4)
+        .flat_map(|l| l.split_whitespace().map(|t| t.parse::<f64>().unwrap()))
+        .collect()
+}
+
+fn ground_truth() -> Vec<f64> {
+    let text = std::fs::read_to_string(data("bun0_to_bun4_groundtruth.txt")).unwrap();
+    text.lines()
+        .filter(|l| !l.starts_with('#'))
+        .flat_map(|l| l.split_whitespace().map(|t| t.parse::<f64>().unwrap()))
+        .collect()
+}
+
+/// Rotation error in degrees between two row-major 4×4 matrices.
+fn rre(a: &[f64], b: &[f64]) -> f64 {
+    let mut tr = 0.0;
+    for i in 0..3 {
+        for k in 0..3 {
+            tr += a[k * 4 + i] * b[k * 4 + i];
+        }
+    }
+    ((tr - 1.0) / 2.0).clamp(-1.0, 1.0).acos().to_degrees()
+}
+
+#[test]
+fn register_prints_matrix_and_summary() {
+    let out = ggs(&[
+        "register",
+        s(&data("bun0.pcd")),
+        s(&data("bun4.pcd")),
+        "--voxel",
+        "0.006",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let stdout = String::from_utf8(out.stdout).unwrap();
+    let m = matrix_from_text(&stdout);
+    assert_eq!(m.len(), 16);
+    assert_eq!(&m[12..], &[0.0, 0.0, 0.0, 1.0]);
+    let gt = ground_truth();
+    assert!(rre(&m, &gt) < 10.0, "RRE {}", rre(&m, &gt));
+    assert!(
+        stdout.contains("rotation") && stdout.contains("ambiguity"),
+        "{stdout}"
+    );
+    // Piped: no progress bar, no warnings.
+    assert!(
+        out.stderr.is_empty(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+#[test]
+fn json_output_and_files() {
+    let d = tmp("files");
+    let (t, aligned, overlay) = (
+        d.join("T.txt"),
+        d.join("aligned.ply"),
+        d.join("overlay.ply"),
+    );
+    let out = ggs(&[
+        "register",
+        s(&data("bun0.pcd")),
+        s(&data("bun4.pcd")),
+        "--voxel",
+        "0.006",
+        "--json",
+        "--top-k",
+        "3",
+        "--threads",
+        "2",
+        "-o",
+        s(&t),
+        "--aligned",
+        s(&aligned),
+        "--overlay",
+        s(&overlay),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let j: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(j["result"]["hypotheses"].as_array().unwrap().len(), 3);
+    assert_eq!(j["result"]["rotations"], 1886);
+    assert_eq!(j["result"]["threads"], 2);
+    assert!(j["result"]["timings"]["search_ms"].as_f64().unwrap() > 0.0);
+    let rows: Vec<f64> = j["transform"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .flat_map(|r| r.as_array().unwrap().iter().map(|v| v.as_f64().unwrap()))
+        .collect();
+    // The matrix file holds the same numbers, exactly.
+    assert_eq!(
+        matrix_from_text(&std::fs::read_to_string(&t).unwrap()),
+        rows
+    );
+    let moved = ggs::io::read_cloud(&aligned, None).unwrap().cloud;
+    assert_eq!(moved.len(), 397);
+    let both = ggs::io::read_cloud(&overlay, None).unwrap().cloud;
+    assert_eq!(both.len(), 397 + 361);
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+#[test]
+fn auto_voxel_is_announced() {
+    let out = ggs(&["register", s(&data("bun0.pcd")), s(&data("bun4.pcd")), "-q"]);
+    assert!(out.status.success());
+    let stdout = String::from_utf8(out.stdout).unwrap();
+    assert!(stdout.contains("auto"), "{stdout}");
+}
+
+fn assert_fails(args: &[&str], needle: &str) {
+    let out = ggs(args);
+    assert_eq!(out.status.code(), Some(2), "args {args:?}");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains(needle), "expected '{needle}' in: {err}");
+    assert!(!err.contains("panicked"), "{err}");
+}
+
+#[test]
+fn bad_inputs_exit_2_with_a_clear_message() {
+    let d = tmp("bad");
+    let good = data("bun4.pcd");
+    let g = s(&good);
+    assert_fails(&["register", "/no/such/file.ply", g], "/no/such/file.ply");
+    let unknown = d.join("cloud.abc");
+    std::fs::write(&unknown, "1 2 3\n").unwrap();
+    assert_fails(&["register", s(&unknown), g], "unknown point-cloud format");
+    let truncated = d.join("t.ply");
+    std::fs::write(
+        &truncated,
+        "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nend_header\n1 2 3\n",
+    )
+    .unwrap();
+    assert_fails(&["register", s(&truncated), g], "truncated");
+    let empty = d.join("e.xyz");
+    std::fs::write(&empty, "").unwrap();
+    assert_fails(&["register", s(&empty), g], "empty");
+    let bad_header = d.join("h.pcd");
+    std::fs::write(&bad_header, "VERSION .7\nFIELDS x y z\nSIZE 4 4\n").unwrap();
+    assert_fails(&["register", s(&bad_header), g], "h.pcd");
+    assert_fails(&["register", g, g, "--voxel", "-1"], "voxel");
+    assert_fails(
+        &["register", g, g, "--rotations", "nope"],
+        "unknown rotation set",
+    );
+    assert_fails(
+        &["register", g, g, "--voxel", "0.0001", "--max-memory", "1M"],
+        "voxel size of at least",
+    );
+    assert_fails(&["register", g, g, "--max-memory", "lots"], "--max-memory");
+    let npy = d.join("r.npy");
+    ggs::io::npy::write_npy_f64(&npy, 2, 3, &[0.0; 6]).unwrap();
+    assert_fails(
+        &["register", g, g, "--rotations-file", s(&npy)],
+        "[N, 3, 3]",
+    );
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+#[test]
+fn rotations_command_writes_npy() {
+    let d = tmp("rot");
+    let p = d.join("l15.npy");
+    let out = ggs(&["rotations", "limited15", "--out", s(&p)]);
+    assert!(out.status.success());
+    let a = ggs::io::npy::read_npy(&p).unwrap();
+    assert_eq!(a.shape, vec![1886, 3, 3]);
+    // Registering with the written file gives the same answer as the named set.
+    let by_name = ggs(&[
+        "register",
+        s(&data("bun0.pcd")),
+        s(&data("bun4.pcd")),
+        "--voxel",
+        "0.006",
+        "--json",
+    ]);
+    let by_file = ggs(&[
+        "register",
+        s(&data("bun0.pcd")),
+        s(&data("bun4.pcd")),
+        "--voxel",
+        "0.006",
+        "--json",
+        "--rotations-file",
+        s(&p),
+    ]);
+    let a: serde_json::Value = serde_json::from_slice(&by_name.stdout).unwrap();
+    let b: serde_json::Value = serde_json::from_slice(&by_file.stdout).unwrap();
+    assert_eq!(a["transform"], b["transform"]);
+    std::fs::remove_dir_all(&d).unwrap();
+}
