@@ -325,10 +325,11 @@ pub fn coarse_register(
                     let r = &rot_rows[k];
                     ws.begin(b.dims);
                     let (grid, sy, sx) = ws.grid_mut();
+                    let inv = 1.0 / s;
                     for p in centred {
-                        let i = voxel::cell(dot_row(&r[0], p) - b.min[0], s);
-                        let j = voxel::cell(dot_row(&r[1], p) - b.min[1], s);
-                        let l = voxel::cell(dot_row(&r[2], p) - b.min[2], s);
+                        let i = voxel::cell_fast(dot_row(&r[0], p) - b.min[0], s, inv);
+                        let j = voxel::cell_fast(dot_row(&r[1], p) - b.min[1], s, inv);
+                        let l = voxel::cell_fast(dot_row(&r[2], p) - b.min[2], s, inv);
                         grid[i * sx + j * sy + l] = 1.0;
                     }
                     t_vox += tv.elapsed();
