@@ -113,11 +113,18 @@ mod tests {
         for &s in &[0.005, 0.006, 0.06, 0.1, 0.3, 0.75, 1.0, 2.0, 1.0 / 3.0] {
             let inv = 1.0 / s;
             for k in 0..200_000u64 {
-                state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                state = state
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
                 let r = (state >> 11) as f64 / (1u64 << 53) as f64;
                 // Random values, and values on and next to exact multiples of s.
                 let base = (k % 1000) as f64 * s;
-                for p in [r * 100.0 * s, base, f64::from_bits(base.to_bits() + 1), f64::from_bits(base.to_bits().saturating_sub(1))] {
+                for p in [
+                    r * 100.0 * s,
+                    base,
+                    f64::from_bits(base.to_bits() + 1),
+                    f64::from_bits(base.to_bits().saturating_sub(1)),
+                ] {
                     if p >= 0.0 {
                         assert_eq!(cell_fast(p, s, inv), cell(p, s), "p {p:e} s {s}");
                     }
