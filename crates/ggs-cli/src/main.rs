@@ -1,5 +1,6 @@
 //! `ggs`: the command line. It parses arguments, calls the library and prints; nothing else.
 
+mod refine_args;
 mod register;
 
 use clap::{Parser, Subcommand};
@@ -17,6 +18,8 @@ struct Cli {
 enum Command {
     /// Register SOURCE onto TARGET: print T with p_target = T · p_source.
     Register(Box<register::RegisterArgs>),
+    /// Refine an initial transform (p_target = T · p_source) by ICP.
+    Refine(Box<register::RefineArgs>),
     /// Write a rotation set to a .npy file of shape [N, 3, 3] (or print its size).
     Rotations(register::RotationsArgs),
 }
@@ -34,6 +37,7 @@ fn main() -> ExitCode {
         .init();
     let outcome = match cli.command {
         Command::Register(a) => register::run(*a),
+        Command::Refine(a) => register::run_refine(*a),
         Command::Rotations(a) => register::run_rotations(a),
     };
     match outcome {

@@ -1,11 +1,13 @@
 //! `ggs register` and `ggs rotations`.
 
+use crate::refine_args::{parse_method, print_report, read_matrix, RefineOptions};
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use ggs::io::{self, ply, Format};
+use ggs::refine::{self, RefineResult};
 use ggs::rotations::{RotationSet, DUPLICATE_TOL_DEG};
 use ggs::search::{self, SearchConfig, SearchResult};
-use ggs::{Cloud, Point};
+use ggs::{Cloud, Point, Rigid};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
@@ -61,7 +63,46 @@ pub struct RegisterArgs {
     /// Write target (blue) and moved source (orange) together to this PLY file.
     #[arg(long, value_name = "OUT.ply")]
     pub overlay: Option<PathBuf>,
+    /// Refinement after the coarse search: gicp, p2plane, p2p or none.
+    #[arg(long, default_value = "gicp")]
+    pub refine: String,
+    #[command(flatten)]
+    pub refine_options: RefineOptions,
     /// No progress bar and no warnings.
+    #[arg(short, long)]
+    pub quiet: bool,
+}
+
+#[derive(Args)]
+pub struct RefineArgs {
+    /// Source point cloud.
+    pub source: PathBuf,
+    /// Target point cloud.
+    pub target: PathBuf,
+    /// Initial transform (4×4 text, p_target = T · p_source).
+    #[arg(long, value_name = "T.txt")]
+    pub init: PathBuf,
+    /// Estimator: gicp, p2plane or p2p.
+    #[arg(long, default_value = "gicp")]
+    pub method: String,
+    #[command(flatten)]
+    pub refine_options: RefineOptions,
+    /// Worker threads (default: all cores).
+    #[arg(long, default_value_t = 0)]
+    pub threads: usize,
+    /// Force the input format of both clouds.
+    #[arg(long)]
+    pub format: Option<String>,
+    /// Print everything as JSON.
+    #[arg(long)]
+    pub json: bool,
+    /// Write the refined matrix to this file.
+    #[arg(short = 'o', long = "output", value_name = "T.txt")]
+    pub output: Option<PathBuf>,
+    /// Write the source, moved by the refined T, to this PLY file.
+    #[arg(long, value_name = "OUT.ply")]
+    pub aligned: Option<PathBuf>,
+    /// No warnings.
     #[arg(short, long)]
     pub quiet: bool,
 }
@@ -73,6 +114,15 @@ pub struct RotationsArgs {
     /// Write the matrices here as float64 [N, 3, 3].
     #[arg(long, value_name = "OUT.npy")]
     pub out: Option<PathBuf>,
+}
+
+fn parse_format(f: &Option<String>) -> Result<Option<Format>> {
+    match f {
+        Some(f) => Ok(Some(Format::from_name(f).with_context(|| {
+            format!("--format: unknown format '{f}' (known: ply, pcd, xyz, txt, csv, pts, npy)")
+        })?)),
+        None => Ok(None),
+    }
 }
 
 fn load(path: &Path, format: Option<Format>, quiet: bool) -> Result<Cloud> {
@@ -115,10 +165,10 @@ fn progress_bar(len: usize, quiet: bool) -> ProgressBar {
 
 pub fn run(args: RegisterArgs) -> Result<()> {
     let t0 = Instant::now();
-    let format = match &args.format {
-        Some(f) => Some(Format::from_name(f).with_context(|| {
-            format!("--format: unknown format '{f}' (known: ply, pcd, xyz, txt, csv, pts, npy)")
-        })?),
+    let format = parse_format(&args.format)?;
+    let method = parse_method(&args.refine)?;
+    let refine_cfg = match method {
+        Some(m) => Some(args.refine_options.config(m, args.threads)?),
         None => None,
     };
     let source = load(&args.source, format, args.quiet)?;
@@ -154,12 +204,17 @@ pub fn run(args: RegisterArgs) -> Result<()> {
     let result = search::coarse_register(&source, &target, &set, &cfg);
     pb.finish_and_clear();
     let result = result?;
+    let refined: Option<RefineResult> = match &refine_cfg {
+        Some(c) => Some(refine::refine(&source, &target, &result.transform, c)?),
+        None => None,
+    };
+    let final_t: Rigid = refined.as_ref().map_or(result.transform, |r| r.transform);
 
     if let Some(path) = &args.output {
-        io::write_atomic(path, result.transform.to_text().as_bytes())?;
+        io::write_atomic(path, final_t.to_text().as_bytes())?;
     }
     let moved: Vec<Point> = if args.aligned.is_some() || args.overlay.is_some() {
-        source.transformed(&result.transform).points
+        source.transformed(&final_t).points
     } else {
         Vec::new()
     };
@@ -180,15 +235,20 @@ pub fn run(args: RegisterArgs) -> Result<()> {
             "target": args.target,
             "voxel": voxel,
             "voxel_auto": voxel_auto,
-            "transform": result.transform.to_rows(),
+            "transform": final_t.to_rows(),
+            "coarse_transform": result.transform.to_rows(),
             "result": result,
+            "refine": refined,
             "read_ms": read_ms,
             "total_ms": total_ms,
         });
         println!("{}", serde_json::to_string_pretty(&out)?);
     } else {
-        print!("{}", result.transform.to_text());
+        print!("{}", final_t.to_text());
         print_summary(&result, voxel_auto, read_ms, total_ms);
+        if let Some(r) = &refined {
+            print_report(r);
+        }
     }
     Ok(())
 }
@@ -242,6 +302,43 @@ fn print_summary(r: &SearchResult, voxel_auto: bool, read_ms: f64, total_ms: f64
         "time        {:.0} ms total: read {:.0}, target {:.0}, extents {:.0}, search {:.0} ms on {} thread(s)",
         total_ms, read_ms, t.target_ms, t.extents_ms, t.search_ms, r.threads
     );
+}
+
+pub fn run_refine(args: RefineArgs) -> Result<()> {
+    let format = parse_format(&args.format)?;
+    let method =
+        parse_method(&args.method)?.context("ggs refine needs a method: gicp, p2plane or p2p")?;
+    let cfg = args.refine_options.config(method, args.threads)?;
+    let init = read_matrix(&args.init)?;
+    let source = load(&args.source, format, args.quiet)?;
+    let target = load(&args.target, format, args.quiet)?;
+    let r = refine::refine(&source, &target, &init, &cfg)?;
+    if let Some(path) = &args.output {
+        io::write_atomic(path, r.transform.to_text().as_bytes())?;
+    }
+    if let Some(path) = &args.aligned {
+        ply::write_ply(
+            path,
+            &source.transformed(&r.transform).points,
+            None,
+            Default::default(),
+        )?;
+    }
+    if args.json {
+        let out = serde_json::json!({
+            "source": args.source,
+            "target": args.target,
+            "init": init.to_rows(),
+            "transform": r.transform.to_rows(),
+            "refine": r,
+        });
+        println!("{}", serde_json::to_string_pretty(&out)?);
+    } else {
+        print!("{}", r.transform.to_text());
+        println!();
+        print_report(&r);
+    }
+    Ok(())
 }
 
 pub fn run_rotations(args: RotationsArgs) -> Result<()> {

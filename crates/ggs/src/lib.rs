@@ -29,6 +29,7 @@ pub mod io;
 pub mod manifest;
 pub mod memory;
 pub mod metrics;
+pub mod refine;
 pub mod rotated;
 pub mod rotations;
 pub mod search;

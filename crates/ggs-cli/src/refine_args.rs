@@ -1,0 +1,122 @@
+//! Refinement options shared by `ggs register` and `ggs refine`.
+
+use anyhow::{bail, Context, Result};
+use clap::Args;
+use ggs::refine::{CorrespondenceDistance, Method, RefineConfig, RefineResult, RobustKernel};
+use ggs::Rigid;
+use std::path::Path;
+
+#[derive(Args, Clone)]
+pub struct RefineOptions {
+    /// Fixed correspondence distance in cloud units (default: the 0.25 quantile of the
+    /// source-to-target nearest-neighbour distances after the initial transform).
+    #[arg(long, value_name = "D")]
+    pub max_distance: Option<f64>,
+    /// Quantile used when no fixed distance is given.
+    #[arg(long, default_value_t = 0.25, value_name = "Q")]
+    pub distance_quantile: f64,
+    /// Robust kernel: none, huber:K, cauchy:K, geman-mcclure:K (K in cloud units).
+    #[arg(long, default_value = "none")]
+    pub kernel: String,
+    /// Iteration cap.
+    #[arg(long, default_value_t = 500)]
+    pub max_iterations: usize,
+    /// Neighbours for normals and covariances.
+    #[arg(long, default_value_t = 20)]
+    pub neighbors: usize,
+}
+
+impl RefineOptions {
+    pub fn config(&self, method: Method, threads: usize) -> Result<RefineConfig> {
+        let kernel = parse_kernel(&self.kernel)?;
+        let correspondence = match self.max_distance {
+            Some(d) => CorrespondenceDistance::Fixed(d),
+            None => CorrespondenceDistance::Quantile(self.distance_quantile),
+        };
+        Ok(RefineConfig {
+            method,
+            correspondence,
+            kernel,
+            max_iterations: self.max_iterations,
+            neighbors: self.neighbors,
+            threads,
+            ..RefineConfig::default()
+        })
+    }
+}
+
+pub fn parse_method(s: &str) -> Result<Option<Method>> {
+    if s == "none" {
+        return Ok(None);
+    }
+    Method::from_name(s)
+        .map(Some)
+        .with_context(|| format!("unknown refinement '{s}' (known: gicp, p2plane, p2p, none)"))
+}
+
+fn parse_kernel(s: &str) -> Result<RobustKernel> {
+    if s == "none" {
+        return Ok(RobustKernel::None);
+    }
+    let (name, k) = s
+        .split_once(':')
+        .with_context(|| format!("--kernel '{s}': expected NAME:K, e.g. huber:0.01"))?;
+    let k: f64 = k
+        .parse()
+        .ok()
+        .filter(|k: &f64| k.is_finite() && *k > 0.0)
+        .with_context(|| format!("--kernel '{s}': K must be a positive number"))?;
+    Ok(match name {
+        "huber" => RobustKernel::Huber(k),
+        "cauchy" => RobustKernel::Cauchy(k),
+        "geman-mcclure" => RobustKernel::GemanMcClure(k),
+        _ => bail!("--kernel '{s}': unknown kernel '{name}' (huber, cauchy, geman-mcclure)"),
+    })
+}
+
+/// Read a 4×4 matrix file: 16 numbers, `#` comments allowed.
+pub fn read_matrix(path: &Path) -> Result<Rigid> {
+    let text = std::fs::read_to_string(path).with_context(|| format!("{}", path.display()))?;
+    let mut nums = Vec::new();
+    for (i, line) in text.lines().enumerate() {
+        let line = line.split('#').next().unwrap_or("");
+        for tok in line.split(|c: char| c.is_whitespace() || c == ',') {
+            if tok.is_empty() {
+                continue;
+            }
+            nums.push(tok.parse::<f64>().map_err(|_| {
+                anyhow::anyhow!(
+                    "{}: line {}: '{tok}' is not a number",
+                    path.display(),
+                    i + 1
+                )
+            })?);
+        }
+    }
+    Rigid::from_row_major(&nums, 1e-4).map_err(|m| anyhow::anyhow!("{}: {m}", path.display()))
+}
+
+pub fn print_report(r: &RefineResult) {
+    let q = &r.report;
+    println!(
+        "refine      {:?}: {} iterations, {} ({}), {:.0} ms",
+        r.method,
+        q.iterations,
+        if q.converged {
+            "converged"
+        } else {
+            "not converged"
+        },
+        q.stop_reason,
+        r.total_ms
+    );
+    println!(
+        "quality     fitness {:.3} (source) / {:.3} (target) within {:.4}, inlier RMSE {:.4}, {} inliers{}",
+        q.fitness_source,
+        q.fitness_target,
+        q.correspondence_distance,
+        q.inlier_rmse,
+        q.inliers,
+        if q.degenerate { ", DEGENERATE geometry (see --json information_eigenvalues)" } else { "" }
+    );
+}

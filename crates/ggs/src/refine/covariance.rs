@@ -1,0 +1,137 @@
+//! Local covariances and normals from the k nearest neighbours of every point (SPEC §6).
+//!
+//! For a point with neighbours `N` (itself included): mean `μ`, covariance
+//! `Σ = (1/|N|)·Σ (p − μ)(p − μ)ᵀ`, eigenvectors `e₁, e₂, e₃` with eigenvalues `λ₁ ≤ λ₂ ≤ λ₃`.
+//! The normal is `e₁`; the GICP covariance is the regularized plane
+//! `C = e₁·ε·e₁ᵀ + e₂e₂ᵀ + e₃e₃ᵀ = V·diag(ε, 1, 1)·Vᵀ` (ε = 1e-3): always symmetric positive
+//! definite, whatever the neighbourhood (repeated or collinear points give some orthonormal
+//! basis, never NaN). `planarity = (λ₂ − λ₁)/λ₃` (0 for a degenerate neighbourhood).
+
+use super::neighbors::PointIndex;
+use crate::cloud::Point;
+use nalgebra::{Matrix3, SymmetricEigen, Vector3};
+use rayon::prelude::*;
+
+/// Local frame of one point.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LocalShape {
+    /// Unit normal (sign arbitrary).
+    pub normal: Vector3<f64>,
+    /// Regularized plane covariance `V·diag(ε, 1, 1)·Vᵀ`.
+    pub covariance: Matrix3<f64>,
+}
+
+/// Eigen-decomposition with eigenvalues sorted ascending (columns of the matrix follow).
+fn sorted_eigen(m: &Matrix3<f64>) -> (Vector3<f64>, Matrix3<f64>) {
+    let e = SymmetricEigen::new(*m);
+    let mut idx = [0usize, 1, 2];
+    idx.sort_by(|&a, &b| e.eigenvalues[a].total_cmp(&e.eigenvalues[b]));
+    let vals = Vector3::new(
+        e.eigenvalues[idx[0]],
+        e.eigenvalues[idx[1]],
+        e.eigenvalues[idx[2]],
+    );
+    let vecs = Matrix3::from_columns(&[
+        e.eigenvectors.column(idx[0]).into_owned(),
+        e.eigenvectors.column(idx[1]).into_owned(),
+        e.eigenvectors.column(idx[2]).into_owned(),
+    ]);
+    (vals, vecs)
+}
+
+/// Shape of a neighbourhood given as points.
+pub fn shape_of(points: &[Point], epsilon: f64) -> LocalShape {
+    let fallback = LocalShape {
+        normal: Vector3::z(),
+        covariance: Matrix3::from_diagonal(&Vector3::new(1.0, 1.0, epsilon)),
+    };
+    if points.len() < 3 {
+        return fallback;
+    }
+    let n = points.len() as f64;
+    let mut mean = Vector3::zeros();
+    for p in points {
+        mean += Vector3::new(p[0], p[1], p[2]);
+    }
+    mean /= n;
+    let mut cov = Matrix3::zeros();
+    for p in points {
+        let d = Vector3::new(p[0], p[1], p[2]) - mean;
+        cov += d * d.transpose();
+    }
+    cov /= n;
+    if !cov.iter().all(|v| v.is_finite()) {
+        return fallback;
+    }
+    let (_, v) = sorted_eigen(&cov);
+    let normal = v.column(0).into_owned();
+    if !normal.iter().all(|x| x.is_finite()) || (normal.norm() - 1.0).abs() > 1e-6 {
+        return fallback;
+    }
+    let covariance = v * Matrix3::from_diagonal(&Vector3::new(epsilon, 1.0, 1.0)) * v.transpose();
+    LocalShape { normal, covariance }
+}
+
+/// Shapes of all points of a cloud from their `k` nearest neighbours, in parallel
+/// (each point independently, so the result does not depend on the thread count).
+pub fn local_shapes(
+    points: &[Point],
+    index: &PointIndex,
+    k: usize,
+    epsilon: f64,
+) -> Vec<LocalShape> {
+    points
+        .par_iter()
+        .map(|p| {
+            let nb: Vec<Point> = index
+                .k_nearest(p, k)
+                .into_iter()
+                .map(|i| points[i])
+                .collect();
+            shape_of(&nb, epsilon)
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn plane_points_have_the_plane_normal() {
+        // A tilted plane z = 0.3x − 0.2y.
+        let mut pts = Vec::new();
+        for i in 0..10 {
+            for j in 0..10 {
+                let (x, y) = (i as f64 * 0.1, j as f64 * 0.1);
+                pts.push([x, y, 0.3 * x - 0.2 * y]);
+            }
+        }
+        let idx = PointIndex::new(&pts);
+        let shapes = local_shapes(&pts, &idx, 20, 1e-3);
+        let expected = Vector3::new(-0.3, 0.2, 1.0).normalize();
+        for s in &shapes {
+            assert!((s.normal.dot(&expected).abs() - 1.0).abs() < 1e-9);
+            // Along the normal the covariance is ε, in the plane 1.
+            assert!((s.normal.dot(&(s.covariance * s.normal)) - 1e-3).abs() < 1e-9);
+            let t = s.normal.cross(&Vector3::x()).normalize();
+            assert!((t.dot(&(s.covariance * t)) - 1.0).abs() < 1e-9);
+        }
+    }
+
+    #[test]
+    fn degenerate_neighbourhoods_never_nan() {
+        for pts in [
+            vec![[1.0, 1.0, 1.0]; 25],                                  // repeated
+            (0..25).map(|i| [i as f64, 2.0 * i as f64, 0.0]).collect(), // collinear
+            vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]],                     // too few
+        ] {
+            let s = shape_of(&pts, 1e-3);
+            assert!(s.normal.iter().all(|v| v.is_finite()));
+            assert!((s.normal.norm() - 1.0).abs() < 1e-9);
+            assert!(s.covariance.iter().all(|v| v.is_finite()));
+            let e = SymmetricEigen::new(s.covariance).eigenvalues;
+            assert!(e.iter().all(|&v| v > 0.0), "{e:?}");
+        }
+    }
+}

@@ -1,0 +1,230 @@
+//! One linearized step of each estimator, accumulated over correspondences.
+//!
+//! Pose update: `T ← [Exp(ω) | v] ∘ T` with `ξ = (ω, v)` (rotation vector in radians, then
+//! translation in cloud units) and Jacobian of a moved point `p' = T·p`:
+//! `∂p'/∂ξ = [−[p']ₓ  I]`.
+//! - point-to-plane: `r = nᵀ(p' − q)`, `J = [(p' × n)ᵀ  nᵀ]`;
+//! - generalized ICP: `d = p' − q`, `M = (C_q + R·C_p·Rᵀ)⁻¹`, cost `dᵀMd`, `J = [−[p']ₓ  I]`;
+//! - point-to-point: closed form (weighted Kabsch), see [`kabsch`].
+
+use nalgebra::{Matrix3, Matrix3x6, Matrix6, Rotation3, Vector3, Vector6};
+
+/// Normal equations `H·ξ = −b` with the cost they came from.
+#[derive(Debug, Clone, Copy)]
+pub struct NormalEquations {
+    pub h: Matrix6<f64>,
+    pub b: Vector6<f64>,
+    pub cost: f64,
+}
+
+impl Default for NormalEquations {
+    fn default() -> Self {
+        NormalEquations {
+            h: Matrix6::zeros(),
+            b: Vector6::zeros(),
+            cost: 0.0,
+        }
+    }
+}
+
+impl NormalEquations {
+    pub fn add(&mut self, o: &NormalEquations) {
+        self.h += o.h;
+        self.b += o.b;
+        self.cost += o.cost;
+    }
+
+    /// Point-to-plane term with weight `w`.
+    #[inline]
+    pub fn add_point_to_plane(
+        &mut self,
+        p: &Vector3<f64>,
+        q: &Vector3<f64>,
+        n: &Vector3<f64>,
+        w: f64,
+    ) {
+        let r = n.dot(&(p - q));
+        let a = p.cross(n);
+        let j = Vector6::new(a.x, a.y, a.z, n.x, n.y, n.z);
+        self.h += w * j * j.transpose();
+        self.b += w * r * j;
+        self.cost += w * r * r;
+    }
+
+    /// Generalized-ICP term with information `m = (C_q + R·C_p·Rᵀ)⁻¹` and weight `w`.
+    #[inline]
+    pub fn add_gicp(&mut self, p: &Vector3<f64>, q: &Vector3<f64>, m: &Matrix3<f64>, w: f64) {
+        let d = p - q;
+        let jac = jacobian(p);
+        let jt_m = jac.transpose() * m;
+        self.h += w * jt_m * jac;
+        self.b += w * jt_m * d;
+        self.cost += w * d.dot(&(m * d));
+    }
+
+    /// Solve `H·ξ = −b`: Cholesky, with a tiny Levenberg damping where `H` is singular
+    /// (a degenerate geometry leaves the unconstrained directions unchanged).
+    pub fn solve(&self) -> Option<Vector6<f64>> {
+        if let Some(c) = self.h.cholesky() {
+            return Some(-c.solve(&self.b));
+        }
+        let scale = (0..6)
+            .map(|i| self.h[(i, i)].abs())
+            .fold(0.0, f64::max)
+            .max(1e-300);
+        let damped = self.h + Matrix6::identity() * (1e-9 * scale);
+        damped.cholesky().map(|c| -c.solve(&self.b))
+    }
+}
+
+/// `∂(T·p)/∂ξ` at the moved point `p`: `[−[p]ₓ  I]`.
+#[inline]
+pub fn jacobian(p: &Vector3<f64>) -> Matrix3x6<f64> {
+    let mut j = Matrix3x6::zeros();
+    let s = -p.cross_matrix();
+    j.fixed_view_mut::<3, 3>(0, 0).copy_from(&s);
+    j.fixed_view_mut::<3, 3>(0, 3)
+        .copy_from(&Matrix3::identity());
+    j
+}
+
+/// `Exp(ω)` (Rodrigues, exact on SO(3)).
+pub fn exp_so3(omega: &Vector3<f64>) -> Matrix3<f64> {
+    Rotation3::new(*omega).into_inner()
+}
+
+/// Angle of a rotation in radians, accurate for tiny angles:
+/// `atan2(‖vee(R − Rᵀ)‖/2, (trace R − 1)/2)`.
+pub fn rotation_angle_rad(r: &Matrix3<f64>) -> f64 {
+    let v = Vector3::new(
+        r[(2, 1)] - r[(1, 2)],
+        r[(0, 2)] - r[(2, 0)],
+        r[(1, 0)] - r[(0, 1)],
+    );
+    (v.norm() / 2.0).atan2((r.trace() - 1.0) / 2.0)
+}
+
+/// Nearest rotation to `m` (SVD, determinant fixed to +1): keeps a pose exactly on SO(3).
+pub fn orthonormalize(m: &Matrix3<f64>) -> Matrix3<f64> {
+    let svd = m.svd(true, true);
+    let (u, vt) = (svd.u.expect("u"), svd.v_t.expect("v_t"));
+    let mut r = u * vt;
+    if r.determinant() < 0.0 {
+        let mut u2 = u;
+        u2.column_mut(2).neg_mut();
+        r = u2 * vt;
+    }
+    r
+}
+
+/// Weighted sums for the closed-form point-to-point step.
+#[derive(Debug, Clone, Copy)]
+pub struct KabschSums {
+    pub w: f64,
+    pub p: Vector3<f64>,
+    pub q: Vector3<f64>,
+    pub pq: Matrix3<f64>,
+}
+
+impl Default for KabschSums {
+    fn default() -> Self {
+        KabschSums {
+            w: 0.0,
+            p: Vector3::zeros(),
+            q: Vector3::zeros(),
+            pq: Matrix3::zeros(),
+        }
+    }
+}
+
+impl KabschSums {
+    #[inline]
+    pub fn push(&mut self, p: &Vector3<f64>, q: &Vector3<f64>, w: f64) {
+        self.w += w;
+        self.p += w * p;
+        self.q += w * q;
+        self.pq += w * p * q.transpose();
+    }
+
+    pub fn add(&mut self, o: &KabschSums) {
+        self.w += o.w;
+        self.p += o.p;
+        self.q += o.q;
+        self.pq += o.pq;
+    }
+}
+
+/// Weighted Kabsch: the rigid `(R, t)` minimizing `Σ w·‖R·p + t − q‖²`.
+pub fn kabsch(s: &KabschSums) -> Option<(Matrix3<f64>, Vector3<f64>)> {
+    if s.w <= 0.0 {
+        return None;
+    }
+    let mp = s.p / s.w;
+    let mq = s.q / s.w;
+    // Σ w (p − mp)(q − mq)ᵀ
+    let cross = s.pq - s.w * mp * mq.transpose();
+    let svd = cross.svd(true, true);
+    let (u, vt) = (svd.u?, svd.v_t?);
+    let mut d = Matrix3::identity();
+    if (vt.transpose() * u.transpose()).determinant() < 0.0 {
+        d[(2, 2)] = -1.0;
+    }
+    let r = vt.transpose() * d * u.transpose();
+    Some((r, mq - r * mp))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn kabsch_recovers_a_motion() {
+        let r = exp_so3(&Vector3::new(0.3, -0.2, 0.5));
+        let t = Vector3::new(0.1, 2.0, -1.0);
+        let mut s = KabschSums::default();
+        for i in 0..20 {
+            let p = Vector3::new((i as f64).sin(), (i as f64 * 0.7).cos(), i as f64 * 0.1);
+            s.push(&p, &(r * p + t), 1.0);
+        }
+        let (re, te) = kabsch(&s).unwrap();
+        assert!((re - r).abs().max() < 1e-12);
+        assert!((te - t).norm() < 1e-12);
+    }
+
+    #[test]
+    fn tiny_angles_are_exact() {
+        for a in [1e-12, 1e-8, 1e-3, 1.0, 3.0] {
+            let r = exp_so3(&Vector3::new(0.0, a, 0.0));
+            assert!(
+                (rotation_angle_rad(&r) - a).abs() < 1e-15 + 1e-12 * a,
+                "{a}"
+            );
+        }
+    }
+
+    #[test]
+    fn orthonormalize_projects_to_so3() {
+        let r = exp_so3(&Vector3::new(1.0, 0.5, -0.3));
+        let noisy = r + Matrix3::new(1e-4, 0.0, 2e-4, 0.0, -1e-4, 0.0, 3e-4, 0.0, 0.0);
+        let o = orthonormalize(&noisy);
+        assert!((o.transpose() * o - Matrix3::identity()).abs().max() < 1e-14);
+        assert!((o.determinant() - 1.0).abs() < 1e-14);
+        assert!((o - r).abs().max() < 1e-3);
+    }
+
+    #[test]
+    fn jacobian_matches_finite_differences() {
+        let p = Vector3::new(0.3, -1.2, 2.0);
+        let j = jacobian(&p);
+        let h = 1e-7;
+        for k in 0..6 {
+            let mut xi = Vector6::zeros();
+            xi[k] = h;
+            let w = Vector3::new(xi[0], xi[1], xi[2]);
+            let v = Vector3::new(xi[3], xi[4], xi[5]);
+            let moved = exp_so3(&w) * p + v;
+            let fd = (moved - p) / h;
+            assert!((fd - j.column(k)).norm() < 1e-6);
+        }
+    }
+}

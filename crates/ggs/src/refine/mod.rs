@@ -1,0 +1,501 @@
+//! Fine registration from an initial transform: point-to-point, point-to-plane and generalized
+//! ICP (SPEC §6), with a quality report.
+//!
+//! Every iteration pairs each moved source point `p' = T·p` with its nearest target point `q`
+//! and keeps the pair when `‖p' − q‖ ≤ d_c` (the *correspondence distance*, fixed for the
+//! run). The estimator then updates `T` (see [`estimators`]); the loop stops when the relative
+//! changes of fitness and inlier RMSE both fall below their tolerances, when the update is
+//! smaller than 1e-10 rad and 1e-10 × the cloud radius, or after `max_iterations`.
+//!
+//! # The figures of the quality report
+//! All are computed at the final transform with the same `d_c`:
+//! - `fitness_source`: fraction of source points whose nearest target point is within `d_c`
+//!   (Open3D's "fitness"); `fitness_target`: fraction of target points whose nearest moved
+//!   source point is within `d_c`. Their minimum says how much of the smaller overlap is
+//!   explained; neither is an overlap ratio of the scenes.
+//! - `inliers`: the count behind `fitness_source`.
+//! - `inlier_rmse`: `sqrt(mean ‖p' − q‖²)` over those inliers, in cloud units (Euclidean,
+//!   whatever the estimator minimized).
+//! - `information_eigenvalues`: eigenvalues (ascending) of the point-to-plane information
+//!   matrix `H = (1/n)·Σ JᵢᵀJᵢ`, `Jᵢ = [((p'ᵢ × nᵢ)/ρ)ᵀ  nᵢᵀ]` over the inliers, with `nᵢ` the
+//!   target normal and `ρ` the source radius, so rotation and translation are both unitless.
+//!   `degenerate` is set when `λ_min / λ_max < 1e-3`: some motion (sliding along a plane or a
+//!   corridor, turning a sphere) changes the residuals by less than a thousandth of the
+//!   best-constrained one, and the alignment along it is not determined by the data.
+
+pub mod covariance;
+pub mod estimators;
+pub mod neighbors;
+
+use crate::cloud::{Cloud, Point};
+use crate::error::{GgsError, Result};
+use crate::transform::Rigid;
+use covariance::{local_shapes, LocalShape};
+use estimators::{exp_so3, kabsch, orthonormalize, KabschSums, NormalEquations};
+use nalgebra::{Matrix3, Matrix6, SymmetricEigen, Vector3};
+use neighbors::PointIndex;
+use rayon::prelude::*;
+use std::time::Instant;
+
+/// The estimator.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Method {
+    /// Point-to-point, closed form (weighted Kabsch) each iteration.
+    P2p,
+    /// Point-to-plane, Gauss-Newton with target normals.
+    P2plane,
+    /// Generalized ICP (plane-to-plane), Gauss-Newton.
+    Gicp,
+}
+
+impl Method {
+    pub fn from_name(s: &str) -> Option<Method> {
+        Some(match s {
+            "p2p" => Method::P2p,
+            "p2plane" => Method::P2plane,
+            "gicp" => Method::Gicp,
+            _ => return None,
+        })
+    }
+}
+
+/// Robust kernel applied to the correspondence distance `e`, as IRLS weights.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub enum RobustKernel {
+    None,
+    /// `w = 1` for `e ≤ k`, else `k/e`.
+    Huber(f64),
+    /// `w = 1/(1 + (e/k)²)`.
+    Cauchy(f64),
+    /// `w = (k²/(k² + e²))²`.
+    GemanMcClure(f64),
+}
+
+impl RobustKernel {
+    #[inline]
+    pub fn weight(&self, e: f64) -> f64 {
+        match *self {
+            RobustKernel::None => 1.0,
+            RobustKernel::Huber(k) => {
+                if e <= k {
+                    1.0
+                } else {
+                    k / e
+                }
+            }
+            RobustKernel::Cauchy(k) => 1.0 / (1.0 + (e / k) * (e / k)),
+            RobustKernel::GemanMcClure(k) => {
+                let a = k * k / (k * k + e * e);
+                a * a
+            }
+        }
+    }
+}
+
+/// How the correspondence distance `d_c` is chosen.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub enum CorrespondenceDistance {
+    /// The `q` quantile (linear interpolation) of the source-to-target nearest-neighbour
+    /// distances after the initial transform (the reference uses q = 0.25).
+    Quantile(f64),
+    /// A fixed distance in cloud units.
+    Fixed(f64),
+}
+
+/// Parameters of a refinement.
+#[derive(Debug, Clone, Copy, serde::Serialize)]
+pub struct RefineConfig {
+    pub method: Method,
+    pub correspondence: CorrespondenceDistance,
+    pub kernel: RobustKernel,
+    /// Iteration cap (500 as the reference; converged runs stop far earlier).
+    pub max_iterations: usize,
+    /// Stop when `|Δfitness|/fitness` and `|Δrmse|/rmse` are both below these.
+    pub relative_fitness: f64,
+    pub relative_rmse: f64,
+    /// Stop when an update rotates by less than this (radians) and moves by less than
+    /// `min_translation_step` × the source radius.
+    pub min_rotation_step: f64,
+    pub min_translation_step: f64,
+    /// Neighbours for normals and covariances.
+    pub neighbors: usize,
+    /// GICP covariance along the normal, ε.
+    pub epsilon: f64,
+    /// Worker threads (0 = all cores); the result does not depend on it.
+    pub threads: usize,
+}
+
+impl Default for RefineConfig {
+    fn default() -> Self {
+        RefineConfig {
+            method: Method::Gicp,
+            correspondence: CorrespondenceDistance::Quantile(0.25),
+            kernel: RobustKernel::None,
+            max_iterations: 500,
+            relative_fitness: 1e-6,
+            relative_rmse: 1e-6,
+            min_rotation_step: 1e-10,
+            min_translation_step: 1e-10,
+            neighbors: 20,
+            epsilon: 1e-3,
+            threads: 0,
+        }
+    }
+}
+
+/// What the refinement achieved (see the module documentation for exact definitions).
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct QualityReport {
+    pub fitness_source: f64,
+    pub fitness_target: f64,
+    pub inlier_rmse: f64,
+    pub inliers: usize,
+    pub correspondence_distance: f64,
+    pub iterations: usize,
+    pub converged: bool,
+    /// `relative change`, `small update`, `max iterations`, `too few correspondences`.
+    pub stop_reason: String,
+    pub information_eigenvalues: [f64; 6],
+    pub degenerate: bool,
+}
+
+/// Result of a refinement.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct RefineResult {
+    #[serde(serialize_with = "ser_rigid")]
+    pub transform: Rigid,
+    pub report: QualityReport,
+    pub method: Method,
+    /// k-d trees and local shapes.
+    pub setup_ms: f64,
+    pub iterate_ms: f64,
+    pub total_ms: f64,
+}
+
+fn ser_rigid<S: serde::Serializer>(t: &Rigid, s: S) -> std::result::Result<S::Ok, S::Error> {
+    serde::Serialize::serialize(&t.to_rows(), s)
+}
+
+const CHUNK: usize = 1024;
+
+#[inline]
+fn v3(p: &Point) -> Vector3<f64> {
+    Vector3::new(p[0], p[1], p[2])
+}
+
+/// Linear-interpolation quantile (`q ∈ [0, 1]`) of `values` (sorted in place).
+pub fn quantile(values: &mut [f64], q: f64) -> f64 {
+    values.sort_by(f64::total_cmp);
+    let pos = q.clamp(0.0, 1.0) * (values.len() - 1) as f64;
+    let lo = pos.floor() as usize;
+    let hi = pos.ceil() as usize;
+    values[lo] + (values[hi] - values[lo]) * (pos - lo as f64)
+}
+
+/// Per-iteration statistics at the current pose.
+#[derive(Default, Clone, Copy)]
+struct Stats {
+    inliers: usize,
+    sq_sum: f64,
+}
+
+/// Refine `init` so that `target ≈ T·source`.
+pub fn refine(
+    source: &Cloud,
+    target: &Cloud,
+    init: &Rigid,
+    cfg: &RefineConfig,
+) -> Result<RefineResult> {
+    source.ensure_not_empty("source")?;
+    target.ensure_not_empty("target")?;
+    if cfg.neighbors < 3 {
+        return Err(GgsError::param(
+            "neighbors",
+            "need at least 3 neighbours for a normal",
+        ));
+    }
+    match cfg.correspondence {
+        CorrespondenceDistance::Quantile(q) if !(0.0..=1.0).contains(&q) => {
+            return Err(GgsError::param(
+                "correspondence",
+                format!("quantile must be in [0, 1], got {q}"),
+            ))
+        }
+        CorrespondenceDistance::Fixed(d) if !(d.is_finite() && d > 0.0) => {
+            return Err(GgsError::param(
+                "correspondence",
+                format!("distance must be positive, got {d}"),
+            ))
+        }
+        _ => {}
+    }
+    let threads = if cfg.threads == 0 {
+        std::thread::available_parallelism().map_or(1, |n| n.get())
+    } else {
+        cfg.threads
+    };
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .map_err(|e| GgsError::param("threads", e.to_string()))?;
+    pool.install(|| refine_in_pool(source, target, init, cfg))
+}
+
+fn refine_in_pool(
+    source: &Cloud,
+    target: &Cloud,
+    init: &Rigid,
+    cfg: &RefineConfig,
+) -> Result<RefineResult> {
+    let t0 = Instant::now();
+    let src = &source.points;
+    let tgt = &target.points;
+    let tindex = PointIndex::new(tgt);
+    let need_target_shapes = true; // normals feed the information matrix of every method
+    let tshapes: Vec<LocalShape> = if need_target_shapes {
+        local_shapes(tgt, &tindex, cfg.neighbors, cfg.epsilon)
+    } else {
+        Vec::new()
+    };
+    let sshapes: Vec<LocalShape> = if cfg.method == Method::Gicp {
+        let sindex = PointIndex::new(src);
+        local_shapes(src, &sindex, cfg.neighbors, cfg.epsilon)
+    } else {
+        Vec::new()
+    };
+    let centroid = source.centroid().expect("non-empty");
+    let radius = src
+        .iter()
+        .map(|p| (v3(p) - v3(&centroid)).norm())
+        .fold(0.0, f64::max)
+        .max(1e-12);
+
+    let mut t = *init;
+    let d_c = match cfg.correspondence {
+        CorrespondenceDistance::Fixed(d) => d,
+        CorrespondenceDistance::Quantile(q) => {
+            let mut d: Vec<f64> = src
+                .par_iter()
+                .map(|p| tindex.nearest(&t.apply(p)).1.sqrt())
+                .collect();
+            quantile(&mut d, q)
+        }
+    };
+    if !(d_c.is_finite() && d_c > 0.0) {
+        return Err(GgsError::param(
+            "correspondence",
+            format!("correspondence distance is {d_c}: the clouds coincide or are degenerate; pass a fixed distance"),
+        ));
+    }
+    let setup_ms = t0.elapsed().as_secs_f64() * 1e3;
+    let t1 = Instant::now();
+    let d2 = d_c * d_c;
+    let min_pairs = if cfg.method == Method::P2p { 3 } else { 6 };
+    // (fitness, rmse) of the last two iterations: a repeat of either means the loop has
+    // settled (a two-cycle, where one correspondence flips in and out, counts too).
+    let mut history: Vec<(f64, f64)> = Vec::with_capacity(2);
+    let mut iterations = 0;
+    let mut converged = false;
+    let mut stop_reason = "max iterations".to_string();
+    for _ in 0..cfg.max_iterations {
+        let r = t.rotation;
+        let tt = t.translation;
+        // Accumulate in fixed chunks, then sum the chunks in order: thread-count independent.
+        let parts: Vec<(Stats, NormalEquations, KabschSums)> = src
+            .par_chunks(CHUNK)
+            .enumerate()
+            .map(|(ci, chunk)| {
+                let mut st = Stats::default();
+                let mut ne = NormalEquations::default();
+                let mut ks = KabschSums::default();
+                for (k, p) in chunk.iter().enumerate() {
+                    let pm = r * v3(p) + tt;
+                    let (j, dd) = tindex.nearest(&[pm.x, pm.y, pm.z]);
+                    if dd > d2 {
+                        continue;
+                    }
+                    st.inliers += 1;
+                    st.sq_sum += dd;
+                    let q = v3(&tgt[j]);
+                    match cfg.method {
+                        Method::P2p => ks.push(&pm, &q, cfg.kernel.weight(dd.sqrt())),
+                        Method::P2plane => {
+                            let n = &tshapes[j].normal;
+                            let res = n.dot(&(pm - q)).abs();
+                            ne.add_point_to_plane(&pm, &q, n, cfg.kernel.weight(res));
+                        }
+                        Method::Gicp => {
+                            let cs = &sshapes[ci * CHUNK + k].covariance;
+                            let c = tshapes[j].covariance + r * cs * r.transpose();
+                            let m = c.try_inverse().unwrap_or_else(Matrix3::identity);
+                            ne.add_gicp(&pm, &q, &m, cfg.kernel.weight(dd.sqrt()));
+                        }
+                    }
+                }
+                (st, ne, ks)
+            })
+            .collect();
+        let mut st = Stats::default();
+        let mut ne = NormalEquations::default();
+        let mut ks = KabschSums::default();
+        for (s, n, k) in &parts {
+            st.inliers += s.inliers;
+            st.sq_sum += s.sq_sum;
+            ne.add(n);
+            ks.add(k);
+        }
+        if st.inliers < min_pairs {
+            stop_reason = "too few correspondences".into();
+            break;
+        }
+        let fitness = st.inliers as f64 / src.len() as f64;
+        let rmse = (st.sq_sum / st.inliers as f64).sqrt();
+        let settled = history.iter().any(|&(pf, pr)| {
+            (fitness - pf).abs() / fitness.max(1e-300) < cfg.relative_fitness
+                && (rmse - pr).abs() / rmse.max(1e-300) < cfg.relative_rmse
+        });
+        if settled {
+            converged = true;
+            stop_reason = "relative change".into();
+            break;
+        }
+        if history.len() == 2 {
+            history.remove(0);
+        }
+        history.push((fitness, rmse));
+        iterations += 1;
+        let (dr, dt) = match cfg.method {
+            Method::P2p => match kabsch(&ks) {
+                Some(x) => x,
+                None => {
+                    stop_reason = "too few correspondences".into();
+                    break;
+                }
+            },
+            _ => match ne.solve() {
+                Some(xi) => {
+                    let w = Vector3::new(xi[0], xi[1], xi[2]);
+                    (exp_so3(&w), Vector3::new(xi[3], xi[4], xi[5]))
+                }
+                None => {
+                    stop_reason = "singular system".into();
+                    break;
+                }
+            },
+        };
+        let rotation = orthonormalize(&(dr * t.rotation));
+        t = Rigid::new(rotation, dr * t.translation + dt);
+        let step_rad = estimators::rotation_angle_rad(&dr);
+        tracing::debug!(
+            iteration = iterations,
+            fitness,
+            rmse,
+            step_rad,
+            step_t = dt.norm(),
+            "refine"
+        );
+        if step_rad < cfg.min_rotation_step && dt.norm() < cfg.min_translation_step * radius {
+            converged = true;
+            stop_reason = "small update".into();
+            break;
+        }
+    }
+    let iterate_ms = t1.elapsed().as_secs_f64() * 1e3;
+    let report = quality(
+        src,
+        tgt,
+        &tindex,
+        &tshapes,
+        &t,
+        d_c,
+        radius,
+        iterations,
+        converged,
+        stop_reason,
+    );
+    Ok(RefineResult {
+        transform: t,
+        report,
+        method: cfg.method,
+        setup_ms,
+        iterate_ms,
+        total_ms: t0.elapsed().as_secs_f64() * 1e3,
+    })
+}
+
+#[allow(clippy::too_many_arguments)]
+fn quality(
+    src: &[Point],
+    tgt: &[Point],
+    tindex: &PointIndex,
+    tshapes: &[LocalShape],
+    t: &Rigid,
+    d_c: f64,
+    radius: f64,
+    iterations: usize,
+    converged: bool,
+    stop_reason: String,
+) -> QualityReport {
+    let d2 = d_c * d_c;
+    let moved: Vec<Point> = src.iter().map(|p| t.apply(p)).collect();
+    let parts: Vec<(usize, f64, Matrix6<f64>)> = moved
+        .par_chunks(CHUNK)
+        .map(|chunk| {
+            let mut n_in = 0;
+            let mut sq = 0.0;
+            let mut h = Matrix6::zeros();
+            for p in chunk {
+                let (j, dd) = tindex.nearest(p);
+                if dd <= d2 {
+                    n_in += 1;
+                    sq += dd;
+                    let n = tshapes[j].normal;
+                    let a = v3(p).cross(&n) / radius;
+                    let jv = nalgebra::Vector6::new(a.x, a.y, a.z, n.x, n.y, n.z);
+                    h += jv * jv.transpose();
+                }
+            }
+            (n_in, sq, h)
+        })
+        .collect();
+    let (mut inliers, mut sq, mut h) = (0usize, 0.0, Matrix6::zeros());
+    for (n, s, m) in &parts {
+        inliers += n;
+        sq += s;
+        h += m;
+    }
+    let mindex = PointIndex::new(&moved);
+    let target_in: usize = tgt
+        .par_chunks(CHUNK)
+        .map(|c| c.iter().filter(|q| mindex.nearest(q).1 <= d2).count())
+        .collect::<Vec<_>>()
+        .iter()
+        .sum();
+    let mut eig = [0.0; 6];
+    let mut degenerate = true;
+    if inliers > 0 {
+        h /= inliers as f64;
+        let e = SymmetricEigen::new(h).eigenvalues;
+        let mut v: Vec<f64> = e.iter().copied().collect();
+        v.sort_by(f64::total_cmp);
+        eig.copy_from_slice(&v);
+        degenerate = !(eig[0] > 1e-3 * eig[5]);
+    }
+    QualityReport {
+        fitness_source: inliers as f64 / src.len() as f64,
+        fitness_target: target_in as f64 / tgt.len() as f64,
+        inlier_rmse: if inliers > 0 {
+            (sq / inliers as f64).sqrt()
+        } else {
+            0.0
+        },
+        inliers,
+        correspondence_distance: d_c,
+        iterations,
+        converged,
+        stop_reason,
+        information_eigenvalues: eig,
+        degenerate,
+    }
+}

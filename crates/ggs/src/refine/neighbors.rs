@@ -1,0 +1,66 @@
+//! Nearest-neighbour search: an immutable k-d tree (kiddo) built once per cloud.
+
+use crate::cloud::Point;
+use kiddo::{ImmutableKdTree, SquaredEuclidean};
+use std::num::NonZero;
+
+/// A point set with its k-d tree.
+pub struct PointIndex {
+    tree: ImmutableKdTree<f64, 3>,
+    len: usize,
+}
+
+impl PointIndex {
+    /// Build the tree (`points` must not be empty).
+    pub fn new(points: &[Point]) -> Self {
+        PointIndex {
+            tree: ImmutableKdTree::new_from_slice(points),
+            len: points.len(),
+        }
+    }
+
+    pub fn len(&self) -> usize {
+        self.len
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+
+    /// Index of the nearest point and the squared distance to it.
+    #[inline]
+    pub fn nearest(&self, q: &Point) -> (usize, f64) {
+        let n = self.tree.nearest_one::<SquaredEuclidean>(q);
+        (n.item as usize, n.distance)
+    }
+
+    /// Indices of the `k` nearest points (fewer if the set is smaller), nearest first.
+    pub fn k_nearest(&self, q: &Point, k: usize) -> Vec<usize> {
+        let k = NonZero::new(k.min(self.len).max(1)).expect("k ≥ 1");
+        self.tree
+            .nearest_n::<SquaredEuclidean>(q, k)
+            .into_iter()
+            .map(|n| n.item as usize)
+            .collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn nearest_and_knn() {
+        let pts = vec![
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [0.0, 2.0, 0.0],
+            [5.0, 5.0, 5.0],
+        ];
+        let idx = PointIndex::new(&pts);
+        assert_eq!(idx.nearest(&[0.9, 0.1, 0.0]).0, 1);
+        assert!((idx.nearest(&[0.0, 0.0, 3.0]).1 - 9.0).abs() < 1e-12);
+        assert_eq!(idx.k_nearest(&[0.0, 0.0, 0.0], 3), vec![0, 1, 2]);
+        assert_eq!(idx.k_nearest(&[0.0, 0.0, 0.0], 10).len(), 4);
+    }
+}
