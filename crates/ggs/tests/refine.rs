@@ -1,0 +1,204 @@
+//! Refinement: exact recovery of a small motion on a real scan, estimator equivalence with
+//! Kabsch, degenerate geometry flagged, thread-count independence.
+
+mod common;
+
+use common::Lcg;
+use ggs::io::read_cloud;
+use ggs::metrics::{rre, rte};
+use ggs::refine::estimators::{exp_so3, kabsch, KabschSums};
+use ggs::refine::{refine, CorrespondenceDistance, Method, RefineConfig};
+use ggs::{Cloud, Rigid};
+use nalgebra::Vector3;
+
+fn small_motion() -> Rigid {
+    Rigid::new(
+        exp_so3(&Vector3::new(0.02, -0.015, 0.03)),
+        Vector3::new(0.003, -0.002, 0.001),
+    )
+}
+
+#[test]
+fn recovers_a_small_motion_on_a_real_scan() {
+    let Some(shared) = common::shared_dir() else {
+        return;
+    };
+    let target = read_cloud(&shared.join("data/stanford_bunny/bun000.ply"), None)
+        .unwrap()
+        .cloud;
+    let truth = small_motion();
+    // source = truth⁻¹ · target, so truth maps source onto target exactly.
+    let source = target.transformed(&truth.inverse());
+    for method in [Method::P2p, Method::P2plane, Method::Gicp] {
+        let cfg = RefineConfig {
+            method,
+            ..RefineConfig::default()
+        };
+        let r = refine(&source, &target, &Rigid::identity(), &cfg).unwrap();
+        let (e_r, e_t) = (rre(&r.transform, &truth), rte(&r.transform, &truth));
+        eprintln!(
+            "{method:?}: RRE {e_r:.2e}° RTE {e_t:.2e} in {} iterations",
+            r.report.iterations
+        );
+        assert!(e_r < 1e-4 && e_t < 1e-6, "{method:?}: RRE {e_r}° RTE {e_t}");
+        assert!(r.report.converged, "{method:?}: {}", r.report.stop_reason);
+        assert!(r.report.fitness_source > 0.99 && r.report.inlier_rmse < 1e-6);
+        assert!(!r.report.degenerate);
+    }
+}
+
+fn grid_cloud(seed: u64) -> Cloud {
+    let mut r = Lcg(seed);
+    let mut pts = Vec::new();
+    for i in 0..8 {
+        for j in 0..8 {
+            for k in 0..8 {
+                pts.push([
+                    i as f64 + 0.2 * r.next_f64(),
+                    j as f64 + 0.2 * r.next_f64(),
+                    k as f64 + 0.2 * r.next_f64(),
+                ]);
+            }
+        }
+    }
+    Cloud::new(pts)
+}
+
+#[test]
+fn one_point_to_point_step_equals_kabsch() {
+    let source = grid_cloud(9);
+    let truth = Rigid::new(
+        exp_so3(&Vector3::new(0.004, 0.002, -0.003)),
+        Vector3::new(0.01, -0.02, 0.015),
+    );
+    let target = source.transformed(&truth);
+    // Spacing 1, motion ≪ 0.5: nearest neighbours are the true pairs.
+    let mut sums = KabschSums::default();
+    for (p, q) in source.points.iter().zip(&target.points) {
+        sums.push(&Vector3::from(*p), &Vector3::from(*q), 1.0);
+    }
+    let (r, t) = kabsch(&sums).unwrap();
+    let cfg = RefineConfig {
+        method: Method::P2p,
+        correspondence: CorrespondenceDistance::Fixed(0.5),
+        max_iterations: 1,
+        ..RefineConfig::default()
+    };
+    let out = refine(&source, &target, &Rigid::identity(), &cfg).unwrap();
+    assert!((out.transform.rotation - r).abs().max() < 1e-12);
+    assert!((out.transform.translation - t).norm() < 1e-12);
+    assert!(rre(&out.transform, &truth) < 1e-9 && rte(&out.transform, &truth) < 1e-9);
+}
+
+#[test]
+fn a_plane_is_flagged_degenerate_without_nan() {
+    let mut pts = Vec::new();
+    for i in 0..30 {
+        for j in 0..30 {
+            pts.push([i as f64 * 0.01, j as f64 * 0.01, 0.0]);
+        }
+    }
+    let target = Cloud::new(pts);
+    let source = target.transformed(&Rigid::new(
+        exp_so3(&Vector3::new(0.0, 0.0, 0.01)),
+        Vector3::new(0.002, 0.001, 0.0005),
+    ));
+    for method in [Method::P2p, Method::P2plane, Method::Gicp] {
+        let cfg = RefineConfig {
+            method,
+            correspondence: CorrespondenceDistance::Fixed(0.05),
+            ..RefineConfig::default()
+        };
+        let r = refine(&source, &target, &Rigid::identity(), &cfg).unwrap();
+        assert!(
+            r.report.degenerate,
+            "{method:?}: {:?}",
+            r.report.information_eigenvalues
+        );
+        assert!(r
+            .transform
+            .to_rows()
+            .iter()
+            .flatten()
+            .all(|v| v.is_finite()));
+        assert!(r.report.inlier_rmse.is_finite());
+    }
+}
+
+#[test]
+fn identical_for_any_thread_count() {
+    let dir = common::repo_root().join("tests/data");
+    let source = read_cloud(&dir.join("bun0.pcd"), None).unwrap().cloud;
+    let target = read_cloud(&dir.join("bun4.pcd"), None).unwrap().cloud;
+    let text = std::fs::read_to_string(dir.join("bun0_to_bun4_groundtruth.txt")).unwrap();
+    let nums: Vec<f64> = text
+        .lines()
+        .filter(|l| !l.starts_with('#'))
+        .flat_map(|l| l.split_whitespace().map(|t| t.parse::<f64>().unwrap()))
+        .collect();
+    let gt = Rigid::from_row_major(&nums, 1e-4).unwrap();
+    // Start 3° and 5 mm away from the ground truth.
+    let init = Rigid::new(
+        exp_so3(&Vector3::new(0.03, 0.03, -0.03)),
+        Vector3::new(0.005, 0.0, 0.0),
+    )
+    .compose(&gt);
+    for method in [Method::P2p, Method::P2plane, Method::Gicp] {
+        let run = |threads| {
+            let cfg = RefineConfig {
+                method,
+                threads,
+                ..RefineConfig::default()
+            };
+            refine(&source, &target, &init, &cfg).unwrap()
+        };
+        let a = run(1);
+        for threads in [2, 8] {
+            let b = run(threads);
+            assert_eq!(
+                a.transform.to_rows(),
+                b.transform.to_rows(),
+                "{method:?} {threads}"
+            );
+            assert_eq!(a.report.iterations, b.report.iterations);
+            assert_eq!(
+                a.report.inlier_rmse.to_bits(),
+                b.report.inlier_rmse.to_bits()
+            );
+        }
+    }
+}
+
+#[test]
+fn bad_parameters_are_errors() {
+    let c = grid_cloud(1);
+    let bad = [
+        RefineConfig {
+            correspondence: CorrespondenceDistance::Fixed(-1.0),
+            ..RefineConfig::default()
+        },
+        RefineConfig {
+            correspondence: CorrespondenceDistance::Quantile(1.5),
+            ..RefineConfig::default()
+        },
+        RefineConfig {
+            neighbors: 2,
+            ..RefineConfig::default()
+        },
+    ];
+    for cfg in bad {
+        assert!(refine(&c, &c, &Rigid::identity(), &cfg).is_err());
+    }
+    assert!(refine(
+        &Cloud::default(),
+        &c,
+        &Rigid::identity(),
+        &RefineConfig::default()
+    )
+    .is_err());
+    // Identical clouds at identity: the 0.25 quantile distance is 0 → a clear error.
+    let e = refine(&c, &c, &Rigid::identity(), &RefineConfig::default())
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("correspondence distance"), "{e}");
+}
