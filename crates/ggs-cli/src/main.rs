@@ -1,5 +1,19 @@
 //! `ggs`: the command line. It parses arguments, calls the library and prints; nothing else.
 
+/// Write to stdout; a closed pipe (`ggs … | head`) ends the output quietly instead of
+/// panicking, any other write error is reported.
+macro_rules! out {
+    ($($arg:tt)*) => {
+        $crate::emit(&format!($($arg)*))?
+    };
+}
+macro_rules! outln {
+    () => { $crate::emit("\n")? };
+    ($($arg:tt)*) => {
+        $crate::emit(&format!("{}\n", format!($($arg)*)))?
+    };
+}
+
 mod refine_args;
 mod register;
 
@@ -22,6 +36,26 @@ enum Command {
     Refine(Box<register::RefineArgs>),
     /// Write a rotation set to a .npy file of shape [N, 3, 3] (or print its size).
     Rotations(register::RotationsArgs),
+}
+
+/// Write `s` to stdout. Returns an error only for a real failure; a broken pipe marks stdout
+/// closed and later writes are dropped.
+pub fn emit(s: &str) -> anyhow::Result<()> {
+    use std::io::Write;
+    use std::sync::atomic::{AtomicBool, Ordering};
+    static CLOSED: AtomicBool = AtomicBool::new(false);
+    if CLOSED.load(Ordering::Relaxed) {
+        return Ok(());
+    }
+    let mut out = std::io::stdout().lock();
+    match out.write_all(s.as_bytes()).and_then(|_| out.flush()) {
+        Ok(()) => Ok(()),
+        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => {
+            CLOSED.store(true, Ordering::Relaxed);
+            Ok(())
+        }
+        Err(e) => Err(anyhow::anyhow!("writing to standard output: {e}")),
+    }
 }
 
 fn main() -> ExitCode {

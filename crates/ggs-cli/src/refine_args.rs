@@ -96,9 +96,9 @@ pub fn read_matrix(path: &Path) -> Result<Rigid> {
     Rigid::from_row_major(&nums, 1e-4).map_err(|m| anyhow::anyhow!("{}: {m}", path.display()))
 }
 
-pub fn print_report(r: &RefineResult) {
+pub fn print_report(r: &RefineResult) -> Result<()> {
     let q = &r.report;
-    println!(
+    outln!(
         "refine      {:?}: {} iterations, {} ({}), {:.0} ms",
         r.method,
         q.iterations,
@@ -110,7 +110,7 @@ pub fn print_report(r: &RefineResult) {
         q.stop_reason,
         r.total_ms
     );
-    println!(
+    outln!(
         "quality     fitness {:.3} (source) / {:.3} (target) within {:.4}, inlier RMSE {:.4}, {} inliers{}",
         q.fitness_source,
         q.fitness_target,
@@ -119,4 +119,5 @@ pub fn print_report(r: &RefineResult) {
         q.inliers,
         if q.degenerate { ", DEGENERATE geometry (see --json information_eigenvalues)" } else { "" }
     );
+    Ok(())
 }

@@ -242,21 +242,21 @@ pub fn run(args: RegisterArgs) -> Result<()> {
             "read_ms": read_ms,
             "total_ms": total_ms,
         });
-        println!("{}", serde_json::to_string_pretty(&out)?);
+        outln!("{}", serde_json::to_string_pretty(&out)?);
     } else {
-        print!("{}", final_t.to_text());
-        print_summary(&result, voxel_auto, read_ms, total_ms);
+        out!("{}", final_t.to_text());
+        print_summary(&result, voxel_auto, read_ms, total_ms)?;
         if let Some(r) = &refined {
-            print_report(r);
+            print_report(r)?;
         }
     }
     Ok(())
 }
 
-fn print_summary(r: &SearchResult, voxel_auto: bool, read_ms: f64, total_ms: f64) {
+fn print_summary(r: &SearchResult, voxel_auto: bool, read_ms: f64, total_ms: f64) -> Result<()> {
     let g = &r.geometry;
-    println!();
-    println!(
+    outln!();
+    outln!(
         "voxel       {}{}",
         r.voxel,
         if voxel_auto {
@@ -265,26 +265,32 @@ fn print_summary(r: &SearchResult, voxel_auto: bool, read_ms: f64, total_ms: f64
             String::new()
         }
     );
-    println!(
+    outln!(
         "rotation    #{} of {} ({}), score {} (match {} = 5·n11 − n01)",
-        r.rotation_index, r.rotations, r.rotation_set, r.score, r.match_score
+        r.rotation_index,
+        r.rotations,
+        r.rotation_set,
+        r.score,
+        r.match_score
     );
     match (&r.runner_up, r.ambiguity) {
-        (Some(ru), Some(a)) => println!(
+        (Some(ru), Some(a)) => outln!(
             "ambiguity   {a:.3} (best rotation > {:.0}° away: #{} with match {})",
-            r.distinct_radius_deg, ru.rotation_index, ru.match_score
+            r.distinct_radius_deg,
+            ru.rotation_index,
+            ru.match_score
         ),
-        _ => println!("ambiguity   n/a"),
+        _ => outln!("ambiguity   n/a"),
     }
     for (i, h) in r.hypotheses.iter().enumerate().skip(1) {
-        println!(
+        outln!(
             "hypothesis  {}: rotation #{} match {}",
             i + 1,
             h.rotation_index,
             h.match_score
         );
     }
-    println!(
+    outln!(
         "grids       target {}×{}×{} ({} occupied), source ≤ {}×{}×{}, FFT {}×{}×{}",
         g.kernel_dims[0],
         g.kernel_dims[1],
@@ -298,10 +304,11 @@ fn print_summary(r: &SearchResult, voxel_auto: bool, read_ms: f64, total_ms: f64
         g.fft_len[2]
     );
     let t = &r.timings;
-    println!(
+    outln!(
         "time        {:.0} ms total: read {:.0}, target {:.0}, extents {:.0}, search {:.0} ms on {} thread(s)",
         total_ms, read_ms, t.target_ms, t.extents_ms, t.search_ms, r.threads
     );
+    Ok(())
 }
 
 pub fn run_refine(args: RefineArgs) -> Result<()> {
@@ -332,11 +339,11 @@ pub fn run_refine(args: RefineArgs) -> Result<()> {
             "transform": r.transform.to_rows(),
             "refine": r,
         });
-        println!("{}", serde_json::to_string_pretty(&out)?);
+        outln!("{}", serde_json::to_string_pretty(&out)?);
     } else {
-        print!("{}", r.transform.to_text());
-        println!();
-        print_report(&r);
+        out!("{}", r.transform.to_text());
+        outln!();
+        print_report(&r)?;
     }
     Ok(())
 }
@@ -351,14 +358,14 @@ pub fn run_rotations(args: RotationsArgs) -> Result<()> {
                 .flat_map(|m| (0..3).flat_map(move |r| (0..3).map(move |c| m[(r, c)])))
                 .collect();
             io::npy::write_npy_3d(path, set.len(), &data)?;
-            println!(
+            outln!(
                 "{}: {} rotations written to {}",
                 set.name,
                 set.len(),
                 path.display()
             );
         }
-        None => println!(
+        None => outln!(
             "{}: {} rotations, step {}°",
             set.name,
             set.len(),

@@ -227,3 +227,150 @@ fn rotations_command_writes_npy() {
     assert_eq!(a["transform"], b["transform"]);
     std::fs::remove_dir_all(&d).unwrap();
 }
+
+#[test]
+fn closed_stdout_is_not_a_panic() {
+    use std::process::Stdio;
+    let mut child = Command::new(env!("CARGO_BIN_EXE_ggs"))
+        .args([
+            "register",
+            s(&data("bun0.pcd")),
+            s(&data("bun4.pcd")),
+            "--voxel",
+            "0.006",
+        ])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    drop(child.stdout.take());
+    let out = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!err.contains("panicked"), "{err}");
+    assert_eq!(out.status.code(), Some(0), "{err}");
+}
+
+#[test]
+fn register_refines_with_gicp_by_default() {
+    let (b0, b4) = (data("bun0.pcd"), data("bun4.pcd"));
+    let args = ["register", s(&b0), s(&b4), "--voxel", "0.006", "--json"];
+    let out = ggs(&args);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let j: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let rep = &j["refine"]["report"];
+    assert_eq!(j["refine"]["method"], "gicp");
+    assert!(rep["fitness_source"].as_f64().unwrap() > 0.2);
+    assert!(rep["converged"].as_bool().unwrap());
+    let gt = ground_truth();
+    let m: Vec<f64> = j["transform"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .flat_map(|r| r.as_array().unwrap().iter().map(|v| v.as_f64().unwrap()))
+        .collect();
+    assert!(rre(&m, &gt) < 1.0, "RRE {}", rre(&m, &gt));
+    let mut none = args.to_vec();
+    none.extend(["--refine", "none"]);
+    let j: serde_json::Value = serde_json::from_slice(&ggs(&none).stdout).unwrap();
+    assert!(j["refine"].is_null());
+    assert_eq!(j["transform"], j["coarse_transform"]);
+}
+
+#[test]
+fn refine_command_from_an_initial_guess() {
+    let d = tmp("refine");
+    let init = d.join("init.txt");
+    // Ground truth disturbed by ~2° about y and 4 mm.
+    let (c, sn) = (2f64.to_radians().cos(), 2f64.to_radians().sin());
+    let gt = ground_truth();
+    let mut m = vec![0.0; 16];
+    let dist = [
+        c, 0.0, sn, 0.004, 0.0, 1.0, 0.0, 0.0, -sn, 0.0, c, 0.0, 0.0, 0.0, 0.0, 1.0,
+    ];
+    for r in 0..4 {
+        for k in 0..4 {
+            m[r * 4 + k] = (0..4).map(|i| dist[r * 4 + i] * gt[i * 4 + k]).sum();
+        }
+    }
+    let text: String = m
+        .chunks(4)
+        .map(|r| format!("{} {} {} {}\n", r[0], r[1], r[2], r[3]))
+        .collect();
+    std::fs::write(&init, format!("# initial guess\n{text}")).unwrap();
+    for method in ["gicp", "p2plane", "p2p"] {
+        let out = ggs(&[
+            "refine",
+            s(&data("bun0.pcd")),
+            s(&data("bun4.pcd")),
+            "--init",
+            s(&init),
+            "--method",
+            method,
+            "--json",
+        ]);
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let j: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        let t: Vec<f64> = j["transform"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .flat_map(|r| r.as_array().unwrap().iter().map(|v| v.as_f64().unwrap()))
+            .collect();
+        assert!(rre(&t, &gt) < rre(&m, &gt), "{method} made it worse");
+    }
+    let bad = d.join("bad.txt");
+    std::fs::write(&bad, "1 0 0 0\n0 1 0 0\n0 0 1 0\n").unwrap();
+    assert_fails(
+        &[
+            "refine",
+            s(&data("bun0.pcd")),
+            s(&data("bun4.pcd")),
+            "--init",
+            s(&bad),
+        ],
+        "16 numbers",
+    );
+    std::fs::write(&bad, "2 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 0 1\n").unwrap();
+    assert_fails(
+        &[
+            "refine",
+            s(&data("bun0.pcd")),
+            s(&data("bun4.pcd")),
+            "--init",
+            s(&bad),
+        ],
+        "not a rotation",
+    );
+    std::fs::write(&bad, "1 0 0 x\n").unwrap();
+    assert_fails(
+        &[
+            "refine",
+            s(&data("bun0.pcd")),
+            s(&data("bun4.pcd")),
+            "--init",
+            s(&bad),
+        ],
+        "line 1",
+    );
+    assert_fails(
+        &[
+            "refine",
+            s(&data("bun0.pcd")),
+            s(&data("bun4.pcd")),
+            "--init",
+            s(&init),
+            "--kernel",
+            "huber:-1",
+        ],
+        "--kernel",
+    );
+    std::fs::remove_dir_all(&d).unwrap();
+}

@@ -39,41 +39,70 @@ fn sorted_eigen(m: &Matrix3<f64>) -> (Vector3<f64>, Matrix3<f64>) {
     (vals, vecs)
 }
 
-/// Shape of a neighbourhood given as points.
-pub fn shape_of(points: &[Point], epsilon: f64) -> LocalShape {
-    let fallback = LocalShape {
-        normal: Vector3::z(),
-        covariance: Matrix3::from_diagonal(&Vector3::new(1.0, 1.0, epsilon)),
-    };
-    if points.len() < 3 {
-        return fallback;
-    }
-    let n = points.len() as f64;
-    let mut mean = Vector3::zeros();
-    for p in points {
-        mean += Vector3::new(p[0], p[1], p[2]);
-    }
-    mean /= n;
-    let mut cov = Matrix3::zeros();
-    for p in points {
-        let d = Vector3::new(p[0], p[1], p[2]) - mean;
-        cov += d * d.transpose();
-    }
-    cov /= n;
-    if !cov.iter().all(|v| v.is_finite()) {
-        return fallback;
-    }
-    let (_, v) = sorted_eigen(&cov);
-    let normal = v.column(0).into_owned();
-    if !normal.iter().all(|x| x.is_finite()) || (normal.norm() - 1.0).abs() > 1e-6 {
-        return fallback;
-    }
-    let covariance = v * Matrix3::from_diagonal(&Vector3::new(epsilon, 1.0, 1.0)) * v.transpose();
-    LocalShape { normal, covariance }
+/// Running sums of a neighbourhood: count, Σd and Σddᵀ of `d = p − anchor` (the query
+/// point), which keeps the sums small and the covariance accurate far from the origin.
+#[derive(Debug, Clone, Copy)]
+pub struct Moments {
+    anchor: Vector3<f64>,
+    n: f64,
+    s: Vector3<f64>,
+    ss: Matrix3<f64>,
 }
 
-/// Shapes of all points of a cloud from their `k` nearest neighbours, in parallel
-/// (each point independently, so the result does not depend on the thread count).
+impl Moments {
+    pub fn new(anchor: &Point) -> Self {
+        Moments {
+            anchor: Vector3::new(anchor[0], anchor[1], anchor[2]),
+            n: 0.0,
+            s: Vector3::zeros(),
+            ss: Matrix3::zeros(),
+        }
+    }
+
+    #[inline]
+    pub fn push(&mut self, p: &Point) {
+        let d = Vector3::new(p[0], p[1], p[2]) - self.anchor;
+        self.n += 1.0;
+        self.s += d;
+        self.ss += d * d.transpose();
+    }
+
+    /// Normal = eigenvector of the smallest eigenvalue of the covariance; covariance
+    /// `V·diag(ε, 1, 1)·Vᵀ = I − (1 − ε)·n·nᵀ`.
+    pub fn shape(&self, epsilon: f64) -> LocalShape {
+        let fallback = LocalShape {
+            normal: Vector3::z(),
+            covariance: Matrix3::from_diagonal(&Vector3::new(1.0, 1.0, epsilon)),
+        };
+        if self.n < 3.0 {
+            return fallback;
+        }
+        let mean = self.s / self.n;
+        let cov = self.ss / self.n - mean * mean.transpose();
+        if !cov.iter().all(|v| v.is_finite()) {
+            return fallback;
+        }
+        let (_, v) = sorted_eigen(&cov);
+        let normal = v.column(0).into_owned();
+        if !normal.iter().all(|x| x.is_finite()) || (normal.norm() - 1.0).abs() > 1e-6 {
+            return fallback;
+        }
+        let covariance = Matrix3::identity() - (1.0 - epsilon) * normal * normal.transpose();
+        LocalShape { normal, covariance }
+    }
+}
+
+/// Shape of a neighbourhood given as points.
+pub fn shape_of(points: &[Point], epsilon: f64) -> LocalShape {
+    let mut m = Moments::new(points.first().unwrap_or(&[0.0; 3]));
+    for p in points {
+        m.push(p);
+    }
+    m.shape(epsilon)
+}
+
+/// Shapes of all points of a cloud from their `k` nearest neighbours (k-d tree), in
+/// parallel; each point independently, so the result does not depend on the thread count.
 pub fn local_shapes(
     points: &[Point],
     index: &PointIndex,
@@ -83,12 +112,9 @@ pub fn local_shapes(
     points
         .par_iter()
         .map(|p| {
-            let nb: Vec<Point> = index
-                .k_nearest(p, k)
-                .into_iter()
-                .map(|i| points[i])
-                .collect();
-            shape_of(&nb, epsilon)
+            let mut m = Moments::new(p);
+            index.for_k_nearest(p, k, |j| m.push(&points[j]));
+            m.shape(epsilon)
         })
         .collect()
 }
@@ -107,8 +133,7 @@ mod tests {
                 pts.push([x, y, 0.3 * x - 0.2 * y]);
             }
         }
-        let idx = PointIndex::new(&pts);
-        let shapes = local_shapes(&pts, &idx, 20, 1e-3);
+        let shapes = local_shapes(&pts, &PointIndex::new(&pts), 20, 1e-3);
         let expected = Vector3::new(-0.3, 0.2, 1.0).normalize();
         for s in &shapes {
             assert!((s.normal.dot(&expected).abs() - 1.0).abs() < 1e-9);

@@ -252,18 +252,18 @@ fn refine_in_pool(
     let src = &source.points;
     let tgt = &target.points;
     let tindex = PointIndex::new(tgt);
-    let need_target_shapes = true; // normals feed the information matrix of every method
-    let tshapes: Vec<LocalShape> = if need_target_shapes {
-        local_shapes(tgt, &tindex, cfg.neighbors, cfg.epsilon)
-    } else {
-        Vec::new()
-    };
+    // Target normals serve every method: point-to-plane residuals, GICP covariances and the
+    // information matrix of the quality report.
+    let tshapes: Vec<LocalShape> = local_shapes(tgt, &tindex, cfg.neighbors, cfg.epsilon);
     let sshapes: Vec<LocalShape> = if cfg.method == Method::Gicp {
-        let sindex = PointIndex::new(src);
-        local_shapes(src, &sindex, cfg.neighbors, cfg.epsilon)
+        local_shapes(src, &PointIndex::new(src), cfg.neighbors, cfg.epsilon)
     } else {
         Vec::new()
     };
+    tracing::debug!(
+        ms = t0.elapsed().as_secs_f64() * 1e3,
+        "trees and local shapes"
+    );
     let centroid = source.centroid().expect("non-empty");
     let radius = src
         .iter()
@@ -480,7 +480,8 @@ fn quality(
         let mut v: Vec<f64> = e.iter().copied().collect();
         v.sort_by(f64::total_cmp);
         eig.copy_from_slice(&v);
-        degenerate = !(eig[0] > 1e-3 * eig[5]);
+        // NaN eigenvalues count as degenerate.
+        degenerate = eig[0].partial_cmp(&(1e-3 * eig[5])) != Some(std::cmp::Ordering::Greater);
     }
     QualityReport {
         fitness_source: inliers as f64 / src.len() as f64,

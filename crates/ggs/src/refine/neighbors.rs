@@ -34,6 +34,15 @@ impl PointIndex {
         (n.item as usize, n.distance)
     }
 
+    /// Call `f` with the index of each of the `k` nearest points (one allocation, inside kiddo).
+    #[inline]
+    pub fn for_k_nearest(&self, q: &Point, k: usize, mut f: impl FnMut(usize)) {
+        let k = NonZero::new(k.min(self.len).max(1)).expect("k ≥ 1");
+        for n in self.tree.nearest_n::<SquaredEuclidean>(q, k) {
+            f(n.item as usize);
+        }
+    }
+
     /// Indices of the `k` nearest points (fewer if the set is smaller), nearest first.
     pub fn k_nearest(&self, q: &Point, k: usize) -> Vec<usize> {
         let k = NonZero::new(k.min(self.len).max(1)).expect("k ≥ 1");
