@@ -38,7 +38,12 @@ impl PointIndex {
     #[inline]
     pub fn for_k_nearest(&self, q: &Point, k: usize, mut f: impl FnMut(usize)) {
         let k = NonZero::new(k.min(self.len).max(1)).expect("k ≥ 1");
-        for n in self.tree.nearest_n::<SquaredEuclidean>(q, k) {
+        // Unsorted results (a heap inside kiddo) are cheaper than its sorted insertion; the
+        // callers only sum over the set, in tree order, which is deterministic.
+        for n in self
+            .tree
+            .nearest_n_within::<SquaredEuclidean>(q, f64::INFINITY, k, false)
+        {
             f(n.item as usize);
         }
     }
