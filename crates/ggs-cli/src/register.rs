@@ -48,18 +48,8 @@ pub struct RegisterArgs {
     /// Memory budget, e.g. 2G or 512M (default: half of physical memory).
     #[arg(long, value_name = "SIZE")]
     pub max_memory: Option<String>,
-    /// Force the input format (ply, pcd, xyz, txt, csv, pts, npy) of both clouds.
-    #[arg(long)]
-    pub format: Option<String>,
-    /// Print everything as JSON on stdout.
-    #[arg(long)]
-    pub json: bool,
-    /// Write the 4×4 matrix to this file (four lines of four numbers).
-    #[arg(short = 'o', long = "output", value_name = "T.txt")]
-    pub output: Option<PathBuf>,
-    /// Write the source, moved by T, to this PLY file.
-    #[arg(long, value_name = "OUT.ply")]
-    pub aligned: Option<PathBuf>,
+    #[command(flatten)]
+    pub io: IoArgs,
     /// Write target (blue) and moved source (orange) together to this PLY file.
     #[arg(long, value_name = "OUT.ply")]
     pub overlay: Option<PathBuf>,
@@ -90,21 +80,44 @@ pub struct RefineArgs {
     /// Worker threads (default: all cores).
     #[arg(long, default_value_t = 0)]
     pub threads: usize,
-    /// Force the input format of both clouds.
-    #[arg(long)]
-    pub format: Option<String>,
-    /// Print everything as JSON.
-    #[arg(long)]
-    pub json: bool,
-    /// Write the refined matrix to this file.
-    #[arg(short = 'o', long = "output", value_name = "T.txt")]
-    pub output: Option<PathBuf>,
-    /// Write the source, moved by the refined T, to this PLY file.
-    #[arg(long, value_name = "OUT.ply")]
-    pub aligned: Option<PathBuf>,
+    #[command(flatten)]
+    pub io: IoArgs,
     /// No warnings.
     #[arg(short, long)]
     pub quiet: bool,
+}
+
+/// Write the matrix file and the moved source, where asked (both atomically).
+fn write_outputs(io_args: &IoArgs, source: &Cloud, t: &Rigid) -> Result<()> {
+    if let Some(path) = &io_args.output {
+        io::write_atomic(path, t.to_text().as_bytes())?;
+    }
+    if let Some(path) = &io_args.aligned {
+        ply::write_ply(
+            path,
+            &source.transformed(t).points,
+            None,
+            Default::default(),
+        )?;
+    }
+    Ok(())
+}
+
+/// Input format and outputs, shared by `register` and `refine`.
+#[derive(Args)]
+pub struct IoArgs {
+    /// Force the input format (ply, pcd, xyz, txt, csv, pts, npy) of both clouds.
+    #[arg(long)]
+    pub format: Option<String>,
+    /// Print everything as JSON on stdout.
+    #[arg(long)]
+    pub json: bool,
+    /// Write the final 4×4 matrix to this file (four lines of four numbers).
+    #[arg(short = 'o', long = "output", value_name = "T.txt")]
+    pub output: Option<PathBuf>,
+    /// Write the source, moved by the final T, to this PLY file.
+    #[arg(long, value_name = "OUT.ply")]
+    pub aligned: Option<PathBuf>,
 }
 
 #[derive(Args)]
@@ -165,7 +178,7 @@ fn progress_bar(len: usize, quiet: bool) -> ProgressBar {
 
 pub fn run(args: RegisterArgs) -> Result<()> {
     let t0 = Instant::now();
-    let format = parse_format(&args.format)?;
+    let format = parse_format(&args.io.format)?;
     let method = parse_method(&args.refine)?;
     let refine_cfg = match method {
         Some(m) => Some(args.refine_options.config(m, args.threads)?),
@@ -210,18 +223,9 @@ pub fn run(args: RegisterArgs) -> Result<()> {
     };
     let final_t: Rigid = refined.as_ref().map_or(result.transform, |r| r.transform);
 
-    if let Some(path) = &args.output {
-        io::write_atomic(path, final_t.to_text().as_bytes())?;
-    }
-    let moved: Vec<Point> = if args.aligned.is_some() || args.overlay.is_some() {
-        source.transformed(&final_t).points
-    } else {
-        Vec::new()
-    };
-    if let Some(path) = &args.aligned {
-        ply::write_ply(path, &moved, None, Default::default())?;
-    }
+    write_outputs(&args.io, &source, &final_t)?;
     if let Some(path) = &args.overlay {
+        let moved: Vec<Point> = source.transformed(&final_t).points;
         let mut pts = target.points.clone();
         pts.extend_from_slice(&moved);
         let mut colors = vec![[40u8, 110, 255]; target.len()];
@@ -229,7 +233,7 @@ pub fn run(args: RegisterArgs) -> Result<()> {
         ply::write_ply(path, &pts, Some(&colors), Default::default())?;
     }
     let total_ms = t0.elapsed().as_secs_f64() * 1e3;
-    if args.json {
+    if args.io.json {
         let out = serde_json::json!({
             "source": args.source,
             "target": args.target,
@@ -312,7 +316,7 @@ fn print_summary(r: &SearchResult, voxel_auto: bool, read_ms: f64, total_ms: f64
 }
 
 pub fn run_refine(args: RefineArgs) -> Result<()> {
-    let format = parse_format(&args.format)?;
+    let format = parse_format(&args.io.format)?;
     let method =
         parse_method(&args.method)?.context("ggs refine needs a method: gicp, p2plane or p2p")?;
     let cfg = args.refine_options.config(method, args.threads)?;
@@ -320,18 +324,8 @@ pub fn run_refine(args: RefineArgs) -> Result<()> {
     let source = load(&args.source, format, args.quiet)?;
     let target = load(&args.target, format, args.quiet)?;
     let r = refine::refine(&source, &target, &init, &cfg)?;
-    if let Some(path) = &args.output {
-        io::write_atomic(path, r.transform.to_text().as_bytes())?;
-    }
-    if let Some(path) = &args.aligned {
-        ply::write_ply(
-            path,
-            &source.transformed(&r.transform).points,
-            None,
-            Default::default(),
-        )?;
-    }
-    if args.json {
+    write_outputs(&args.io, &source, &r.transform)?;
+    if args.io.json {
         let out = serde_json::json!({
             "source": args.source,
             "target": args.target,

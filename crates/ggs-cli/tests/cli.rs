@@ -327,50 +327,20 @@ fn refine_command_from_an_initial_guess() {
         assert!(rre(&t, &gt) < rre(&m, &gt), "{method} made it worse");
     }
     let bad = d.join("bad.txt");
-    std::fs::write(&bad, "1 0 0 0\n0 1 0 0\n0 0 1 0\n").unwrap();
-    assert_fails(
-        &[
-            "refine",
-            s(&data("bun0.pcd")),
-            s(&data("bun4.pcd")),
-            "--init",
-            s(&bad),
-        ],
-        "16 numbers",
-    );
-    std::fs::write(&bad, "2 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 0 1\n").unwrap();
-    assert_fails(
-        &[
-            "refine",
-            s(&data("bun0.pcd")),
-            s(&data("bun4.pcd")),
-            "--init",
-            s(&bad),
-        ],
-        "not a rotation",
-    );
-    std::fs::write(&bad, "1 0 0 x\n").unwrap();
-    assert_fails(
-        &[
-            "refine",
-            s(&data("bun0.pcd")),
-            s(&data("bun4.pcd")),
-            "--init",
-            s(&bad),
-        ],
-        "line 1",
-    );
-    assert_fails(
-        &[
-            "refine",
-            s(&data("bun0.pcd")),
-            s(&data("bun4.pcd")),
-            "--init",
-            s(&init),
-            "--kernel",
-            "huber:-1",
-        ],
-        "--kernel",
-    );
+    let (b0, b4) = (data("bun0.pcd"), data("bun4.pcd"));
+    let refine_with = |init: &Path, extra: &[&str], needle: &str| {
+        let mut args = vec!["refine", s(&b0), s(&b4), "--init", s(init)];
+        args.extend_from_slice(extra);
+        assert_fails(&args, needle);
+    };
+    for (text, needle) in [
+        ("1 0 0 0\n0 1 0 0\n0 0 1 0\n", "16 numbers"),
+        ("2 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 0 1\n", "not a rotation"),
+        ("1 0 0 x\n", "line 1"),
+    ] {
+        std::fs::write(&bad, text).unwrap();
+        refine_with(&bad, &[], needle);
+    }
+    refine_with(&init, &["--kernel", "huber:-1"], "--kernel");
     std::fs::remove_dir_all(&d).unwrap();
 }

@@ -33,6 +33,7 @@ pub mod refine;
 pub mod rotated;
 pub mod rotations;
 pub mod search;
+pub mod threads;
 pub mod transform;
 pub mod voxel;
 

@@ -201,11 +201,7 @@ pub fn coarse_register(
     }
     source.ensure_not_empty("source")?;
     target.ensure_not_empty("target")?;
-    let threads = if cfg.threads == 0 {
-        std::thread::available_parallelism().map_or(1, |n| n.get())
-    } else {
-        cfg.threads
-    };
+    let threads = crate::threads::resolve(cfg.threads);
     let budget = cfg.max_memory.unwrap_or_else(memory::default_budget);
 
     // Target: shift to min 0, kernel dims.
@@ -234,10 +230,7 @@ pub fn coarse_register(
     }
     let rot_rows: Vec<[[f64; 3]; 3]> = set.matrices.iter().map(rows).collect();
 
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(threads)
-        .build()
-        .map_err(|e| GgsError::param("threads", e.to_string()))?;
+    let (pool, _) = crate::threads::pool(threads)?;
 
     // Pass 1: extents of every rotated source (fixes the FFT lengths for the whole pair).
     let t1 = Instant::now();

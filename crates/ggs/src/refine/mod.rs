@@ -230,15 +230,7 @@ pub fn refine(
         }
         _ => {}
     }
-    let threads = if cfg.threads == 0 {
-        std::thread::available_parallelism().map_or(1, |n| n.get())
-    } else {
-        cfg.threads
-    };
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(threads)
-        .build()
-        .map_err(|e| GgsError::param("threads", e.to_string()))?;
+    let (pool, _) = crate::threads::pool(cfg.threads)?;
     pool.install(|| refine_in_pool(source, target, init, cfg))
 }
 
