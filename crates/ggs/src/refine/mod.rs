@@ -303,10 +303,9 @@ fn refine_in_pool(
                 let mut ks = KabschSums::default();
                 for (k, p) in chunk.iter().enumerate() {
                     let pm = r * v3(p) + tt;
-                    let (j, dd) = tindex.nearest(&[pm.x, pm.y, pm.z]);
-                    if dd > d2 {
+                    let Some((j, dd)) = tindex.nearest_within(&[pm.x, pm.y, pm.z], d2) else {
                         continue;
-                    }
+                    };
                     st.inliers += 1;
                     st.sq_sum += dd;
                     let q = v3(&tgt[j]);
@@ -438,8 +437,7 @@ fn quality(
             let mut sq = 0.0;
             let mut h = Matrix6::zeros();
             for p in chunk {
-                let (j, dd) = tindex.nearest(p);
-                if dd <= d2 {
+                if let Some((j, dd)) = tindex.nearest_within(p, d2) {
                     n_in += 1;
                     sq += dd;
                     let n = tshapes[j].normal;
@@ -460,7 +458,11 @@ fn quality(
     let mindex = PointIndex::new(&moved);
     let target_in: usize = tgt
         .par_chunks(CHUNK)
-        .map(|c| c.iter().filter(|q| mindex.nearest(q).1 <= d2).count())
+        .map(|c| {
+            c.iter()
+                .filter(|q| mindex.nearest_within(q, d2).is_some())
+                .count()
+        })
         .collect::<Vec<_>>()
         .iter()
         .sum();

@@ -34,6 +34,17 @@ impl PointIndex {
         (n.item as usize, n.distance)
     }
 
+    /// The nearest point within squared distance `max_d2` (inclusive), if any. Cheaper than
+    /// [`Self::nearest`] for points far from the set: the search stops at the radius.
+    #[inline]
+    pub fn nearest_within(&self, q: &Point, max_d2: f64) -> Option<(usize, f64)> {
+        let one = NonZero::new(1).expect("1 ≥ 1");
+        self.tree
+            .nearest_n_within::<SquaredEuclidean>(q, max_d2, one, false)
+            .first()
+            .map(|n| (n.item as usize, n.distance))
+    }
+
     /// Call `f` with the index of each of the `k` nearest points (one allocation, inside kiddo).
     #[inline]
     pub fn for_k_nearest(&self, q: &Point, k: usize, mut f: impl FnMut(usize)) {
@@ -73,6 +84,15 @@ mod tests {
         ];
         let idx = PointIndex::new(&pts);
         assert_eq!(idx.nearest(&[0.9, 0.1, 0.0]).0, 1);
+        assert_eq!(
+            idx.nearest_within(&[0.9, 0.1, 0.0], 0.03).map(|n| n.0),
+            Some(1)
+        );
+        assert_eq!(idx.nearest_within(&[0.9, 0.1, 0.0], 0.01), None);
+        assert_eq!(
+            idx.nearest_within(&[0.0, 0.0, 3.0], 9.0).map(|n| n.0),
+            Some(0)
+        );
         assert!((idx.nearest(&[0.0, 0.0, 3.0]).1 - 9.0).abs() < 1e-12);
         assert_eq!(idx.k_nearest(&[0.0, 0.0, 0.0], 3), vec![0, 1, 2]);
         assert_eq!(idx.k_nearest(&[0.0, 0.0, 0.0], 10).len(), 4);
