@@ -1,12 +1,16 @@
 //! Nearest-neighbour search: an immutable k-d tree (kiddo) built once per cloud.
 
 use crate::cloud::Point;
-use kiddo::{ImmutableKdTree, SquaredEuclidean};
+use kiddo::immutable::float::kdtree::ImmutableKdTree;
+use kiddo::SquaredEuclidean;
+
+/// Leaf bucket size of the tree (points scanned linearly at a leaf).
+const BUCKET: usize = 16;
 use std::num::NonZero;
 
 /// A point set with its k-d tree.
 pub struct PointIndex {
-    tree: ImmutableKdTree<f64, 3>,
+    tree: ImmutableKdTree<f64, u32, 3, BUCKET>,
     len: usize,
 }
 
