@@ -52,6 +52,9 @@ pub fn fast_len(min: usize, even: bool) -> usize {
     }
 }
 
+/// x-planes transformed along y in one batch.
+const X_BLOCK: usize = 8;
+
 /// Round to the nearest integer (ties to even) for |v| < 2^51, without a libm call:
 /// adding and subtracting 1.5·2^52 leaves no fraction bits.
 #[inline(always)]
@@ -109,7 +112,7 @@ impl Geometry {
         let real = ax * ay * lz * 8;
         let zspec = ax * ay * kz * 16;
         let grid = ly * kz * lx * 16;
-        let slab = kz * lx.max(ly) * 16;
+        let slab = X_BLOCK * kz * ly * 16;
         (real + zspec + grid + slab + 4 * (lx + ly + lz) * 16) as u64
     }
 }
@@ -268,7 +271,7 @@ impl CpuCorrelator {
             ay,
             zspec: vec![C64::default(); ax * ay * kz],
             grid: vec![C64::default(); ly * kz * lx],
-            slab: vec![C64::default(); kz * lx.max(ly)],
+            slab: vec![C64::default(); X_BLOCK * kz * ly],
             zrow: vec![C64::default(); kz],
             rrow: vec![0.0; lz],
             scratch: vec![C64::default(); self.scratch_len],
@@ -303,22 +306,32 @@ impl CpuCorrelator {
         for line in ws.grid.chunks_exact_mut(lx) {
             line[nsx..].fill(C64::default());
         }
-        for x in 0..nsx {
-            // Gather the plane into [kz][y], zero beyond NS_y.
-            for k in 0..kz {
-                let dst = &mut ws.slab[k * ly..(k + 1) * ly];
-                for y in 0..nsy {
-                    dst[y] = ws.zspec[(x * ay + y) * kz + k];
+        // Blocks of X_BLOCK x-planes: one batched FFT call, and the scatter into the grid
+        // writes X_BLOCK neighbouring x values at a time.
+        let mut x0 = 0;
+        while x0 < nsx {
+            let nb = X_BLOCK.min(nsx - x0);
+            for b in 0..nb {
+                let x = x0 + b;
+                for k in 0..kz {
+                    let dst = &mut ws.slab[(b * kz + k) * ly..(b * kz + k + 1) * ly];
+                    for y in 0..nsy {
+                        dst[y] = ws.zspec[(x * ay + y) * kz + k];
+                    }
+                    dst[nsy..].fill(C64::default());
                 }
-                dst[nsy..].fill(C64::default());
             }
             self.fft_y
-                .process_with_scratch(&mut ws.slab[..kz * ly], &mut ws.scratch);
-            for k in 0..kz {
-                for y in 0..ly {
-                    ws.grid[(y * kz + k) * lx + x] = ws.slab[k * ly + y];
+                .process_with_scratch(&mut ws.slab[..nb * kz * ly], &mut ws.scratch);
+            for y in 0..ly {
+                for k in 0..kz {
+                    let base = (y * kz + k) * lx + x0;
+                    for b in 0..nb {
+                        ws.grid[base + b] = ws.slab[(b * kz + k) * ly + y];
+                    }
                 }
             }
+            x0 += nb;
         }
     }
 
@@ -366,35 +379,43 @@ impl CpuCorrelator {
         }
         let t2 = Instant::now();
         let mut max_err = ws.max_rounding_error;
-        for ax in 0..nsx {
-            let jx = (ax + lx - cx) % lx;
-            for k in 0..kz {
-                let dst = &mut ws.slab[k * ly..(k + 1) * ly];
-                for (y, d) in dst.iter_mut().enumerate() {
-                    *d = ws.grid[(y * kz + k) * lx + jx];
+        let mut a0 = 0;
+        while a0 < nsx {
+            let nb = X_BLOCK.min(nsx - a0);
+            let jx = |b: usize| (a0 + b + lx - cx) % lx;
+            for y in 0..ly {
+                for k in 0..kz {
+                    let base = (y * kz + k) * lx;
+                    for b in 0..nb {
+                        ws.slab[(b * kz + k) * ly + y] = ws.grid[base + jx(b)];
+                    }
                 }
             }
             self.ifft_y
-                .process_with_scratch(&mut ws.slab[..kz * ly], &mut ws.scratch);
-            for ay in 0..nsy {
-                let jy = (ay + ly - cy) % ly;
-                for k in 0..kz {
-                    ws.zrow[k] = ws.slab[k * ly + jy];
-                }
-                // The result is real: DC and Nyquist bins have no imaginary part.
-                ws.zrow[0].im = 0.0;
-                ws.zrow[kz - 1].im = 0.0;
-                self.c2r
-                    .process_with_scratch(&mut ws.zrow, &mut ws.rrow, &mut ws.scratch)
-                    .expect("c2r lengths match the plan");
-                for az in 0..nsz {
-                    let jz = (az + lz - cz) % lz;
-                    let v = ws.rrow[jz];
-                    let m = round_small(v);
-                    max_err = max_err.max((v - m).abs());
-                    visit(m as i64, [ax, ay, az]);
+                .process_with_scratch(&mut ws.slab[..nb * kz * ly], &mut ws.scratch);
+            for b in 0..nb {
+                let ax = a0 + b;
+                for ay in 0..nsy {
+                    let jy = (ay + ly - cy) % ly;
+                    for k in 0..kz {
+                        ws.zrow[k] = ws.slab[(b * kz + k) * ly + jy];
+                    }
+                    // The result is real: DC and Nyquist bins have no imaginary part.
+                    ws.zrow[0].im = 0.0;
+                    ws.zrow[kz - 1].im = 0.0;
+                    self.c2r
+                        .process_with_scratch(&mut ws.zrow, &mut ws.rrow, &mut ws.scratch)
+                        .expect("c2r lengths match the plan");
+                    for az in 0..nsz {
+                        let jz = (az + lz - cz) % lz;
+                        let v = ws.rrow[jz];
+                        let m = round_small(v);
+                        max_err = max_err.max((v - m).abs());
+                        visit(m as i64, [ax, ay, az]);
+                    }
                 }
             }
+            a0 += nb;
         }
         ws.max_rounding_error = max_err;
         let t3 = Instant::now();
