@@ -1,0 +1,47 @@
+//! Stage benchmarks on the bundled PCL bunny pair (tests/data, ~400 points each):
+//! `cargo bench -p ggs`. For the large real pairs see docs/coarse-search.md and
+//! docs/refinement.md (whole-process timings with `ggs register --json`).
+
+use criterion::{criterion_group, criterion_main, Criterion};
+use ggs::io::read_cloud;
+use ggs::refine::{refine, RefineConfig};
+use ggs::rotations::RotationSet;
+use ggs::search::{coarse_register, SearchConfig};
+use std::path::PathBuf;
+
+fn data(name: &str) -> ggs::Cloud {
+    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../../tests/data")
+        .join(name);
+    read_cloud(&p, None).expect("bundled fixture").cloud
+}
+
+fn pipeline(c: &mut Criterion) {
+    let source = data("bun0.pcd");
+    let target = data("bun4.pcd");
+    let set = RotationSet::named("limited15").unwrap();
+    let mut g = c.benchmark_group("pcl_bun0_bun4");
+    g.sample_size(10);
+    g.bench_function("rotation set limited15", |b| {
+        b.iter(|| RotationSet::named("limited15").unwrap())
+    });
+    for threads in [1, 2] {
+        let cfg = SearchConfig {
+            threads,
+            ..SearchConfig::with_voxel(0.006)
+        };
+        g.bench_function(format!("coarse limited15 6mm, {threads} thread(s)"), |b| {
+            b.iter(|| coarse_register(&source, &target, &set, &cfg).unwrap())
+        });
+    }
+    let coarse = coarse_register(&source, &target, &set, &SearchConfig::with_voxel(0.006))
+        .unwrap()
+        .transform;
+    g.bench_function("gicp from coarse", |b| {
+        b.iter(|| refine(&source, &target, &coarse, &RefineConfig::default()).unwrap())
+    });
+    g.finish();
+}
+
+criterion_group!(benches, pipeline);
+criterion_main!(benches);
