@@ -119,6 +119,49 @@ pub fn local_shapes(
         .collect()
 }
 
+/// Local shapes computed on first use and kept: only points that take part in a
+/// correspondence ever pay for their neighbour search (a low-overlap pair touches a fraction
+/// of each cloud). A shape is a pure function of the cloud and the point, so which thread
+/// computes it first does not matter.
+pub struct LazyShapes<'a> {
+    points: &'a [Point],
+    index: &'a PointIndex,
+    k: usize,
+    epsilon: f64,
+    cache: Vec<std::sync::OnceLock<LocalShape>>,
+}
+
+impl<'a> LazyShapes<'a> {
+    pub fn new(points: &'a [Point], index: &'a PointIndex, k: usize, epsilon: f64) -> Self {
+        LazyShapes {
+            points,
+            index,
+            k,
+            epsilon,
+            cache: (0..points.len())
+                .map(|_| std::sync::OnceLock::new())
+                .collect(),
+        }
+    }
+
+    /// The shape of point `i`.
+    #[inline]
+    pub fn get(&self, i: usize) -> &LocalShape {
+        self.cache[i].get_or_init(|| {
+            let p = &self.points[i];
+            let mut m = Moments::new(p);
+            self.index
+                .for_k_nearest(p, self.k, |j| m.push(&self.points[j]));
+            m.shape(self.epsilon)
+        })
+    }
+
+    /// How many shapes were computed so far.
+    pub fn computed(&self) -> usize {
+        self.cache.iter().filter(|c| c.get().is_some()).count()
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -142,6 +185,24 @@ mod tests {
             let t = s.normal.cross(&Vector3::x()).normalize();
             assert!((t.dot(&(s.covariance * t)) - 1.0).abs() < 1e-9);
         }
+    }
+
+    #[test]
+    fn lazy_shapes_equal_eager_ones() {
+        let pts: Vec<Point> = (0..200)
+            .map(|i| {
+                let t = i as f64 * 0.1;
+                [t.sin(), t.cos(), 0.01 * t]
+            })
+            .collect();
+        let idx = PointIndex::new(&pts);
+        let eager = local_shapes(&pts, &idx, 20, 1e-3);
+        let lazy = LazyShapes::new(&pts, &idx, 20, 1e-3);
+        assert_eq!(lazy.computed(), 0);
+        for i in (0..200).rev() {
+            assert_eq!(*lazy.get(i), eager[i]);
+        }
+        assert_eq!(lazy.computed(), 200);
     }
 
     #[test]

@@ -30,7 +30,7 @@ pub mod neighbors;
 use crate::cloud::{Cloud, Point};
 use crate::error::{GgsError, Result};
 use crate::transform::Rigid;
-use covariance::{local_shapes, LocalShape};
+use covariance::LazyShapes;
 use estimators::{exp_so3, kabsch, orthonormalize, KabschSums, NormalEquations};
 use nalgebra::{Matrix3, Matrix6, SymmetricEigen, Vector3};
 use neighbors::PointIndex;
@@ -246,12 +246,12 @@ fn refine_in_pool(
     let tindex = PointIndex::new(tgt);
     // Target normals serve every method: point-to-plane residuals, GICP covariances and the
     // information matrix of the quality report.
-    let tshapes: Vec<LocalShape> = local_shapes(tgt, &tindex, cfg.neighbors, cfg.epsilon);
-    let sshapes: Vec<LocalShape> = if cfg.method == Method::Gicp {
-        local_shapes(src, &PointIndex::new(src), cfg.neighbors, cfg.epsilon)
-    } else {
-        Vec::new()
-    };
+    let tshapes = LazyShapes::new(tgt, &tindex, cfg.neighbors, cfg.epsilon);
+    // Source shapes only for GICP.
+    let sindex = (cfg.method == Method::Gicp).then(|| PointIndex::new(src));
+    let sshapes = sindex
+        .as_ref()
+        .map(|ix| LazyShapes::new(src, ix, cfg.neighbors, cfg.epsilon));
     tracing::debug!(
         ms = t0.elapsed().as_secs_f64() * 1e3,
         "trees and local shapes"
@@ -312,13 +312,17 @@ fn refine_in_pool(
                     match cfg.method {
                         Method::P2p => ks.push(&pm, &q, cfg.kernel.weight(dd.sqrt())),
                         Method::P2plane => {
-                            let n = &tshapes[j].normal;
+                            let n = &tshapes.get(j).normal;
                             let res = n.dot(&(pm - q)).abs();
                             ne.add_point_to_plane(&pm, &q, n, cfg.kernel.weight(res));
                         }
                         Method::Gicp => {
-                            let cs = &sshapes[ci * CHUNK + k].covariance;
-                            let c = tshapes[j].covariance + r * cs * r.transpose();
+                            let cs = &sshapes
+                                .as_ref()
+                                .expect("GICP builds source shapes")
+                                .get(ci * CHUNK + k)
+                                .covariance;
+                            let c = tshapes.get(j).covariance + r * cs * r.transpose();
                             let m = c.try_inverse().unwrap_or_else(Matrix3::identity);
                             ne.add_gicp(&pm, &q, &m, cfg.kernel.weight(dd.sqrt()));
                         }
@@ -420,7 +424,7 @@ fn quality(
     src: &[Point],
     tgt: &[Point],
     tindex: &PointIndex,
-    tshapes: &[LocalShape],
+    tshapes: &LazyShapes,
     t: &Rigid,
     d_c: f64,
     radius: f64,
@@ -440,7 +444,7 @@ fn quality(
                 if let Some((j, dd)) = tindex.nearest_within(p, d2) {
                     n_in += 1;
                     sq += dd;
-                    let n = tshapes[j].normal;
+                    let n = tshapes.get(j).normal;
                     let a = v3(p).cross(&n) / radius;
                     let jv = nalgebra::Vector6::new(a.x, a.y, a.z, n.x, n.y, n.z);
                     h += jv * jv.transpose();
