@@ -196,9 +196,21 @@ fn bad_parameters_are_errors() {
         &RefineConfig::default()
     )
     .is_err());
-    // Identical clouds at identity: the 0.25 quantile distance is 0 → a clear error.
-    let e = refine(&c, &c, &Rigid::identity(), &RefineConfig::default())
-        .unwrap_err()
-        .to_string();
-    assert!(e.contains("correspondence distance"), "{e}");
+}
+
+#[test]
+fn coinciding_clouds_are_an_exact_answer_not_an_error() {
+    let c = grid_cloud(1);
+    // Every distance is 0: nothing to refine.
+    let r = refine(&c, &c, &Rigid::identity(), &RefineConfig::default()).unwrap();
+    assert_eq!(r.report.stop_reason, "exact overlap");
+    assert_eq!(r.transform, Rigid::identity());
+    assert_eq!(r.report.fitness_source, 1.0);
+    // Some points coincide, others not: d_c comes from the positive distances.
+    let mut moved = c.clone();
+    for p in moved.points.iter_mut().skip(100) {
+        p[0] += 0.01;
+    }
+    let r = refine(&moved, &c, &Rigid::identity(), &RefineConfig::default()).unwrap();
+    assert!(r.report.correspondence_distance > 0.0);
 }

@@ -189,7 +189,8 @@ fn read_ascii(
         t += f.count;
     }
     let cols: Vec<usize> = xyz.iter().map(|&i| first[i]).collect();
-    let mut out = Vec::with_capacity(n);
+    // The header may overstate POINTS: an ascii point takes at least 6 bytes.
+    let mut out = Vec::with_capacity(n.min(data.len() / 6));
     for (li, raw) in data.split(|&b| b == b'\n').enumerate() {
         if out.len() == n {
             break;
@@ -333,7 +334,9 @@ fn read_compressed(
 
 /// LZF decompression (the format of liblzf, used by PCL's `binary_compressed`).
 pub fn lzf_decompress(input: &[u8], out_len: usize) -> std::result::Result<Vec<u8>, String> {
-    let mut out: Vec<u8> = Vec::with_capacity(out_len);
+    // One input byte expands to at most ~88 output bytes: never trust `out_len` for the
+    // allocation.
+    let mut out: Vec<u8> = Vec::with_capacity(out_len.min(input.len().saturating_mul(90)));
     let mut i = 0usize;
     while i < input.len() {
         let ctrl = input[i] as usize;
@@ -429,6 +432,22 @@ mod tests {
             parse_pcd(Path::new(P), &b).unwrap(),
             vec![[1.0, 2.0, 3.0], [4.0, 5.0, 6.0]]
         );
+    }
+
+    #[test]
+    fn overstated_sizes_fail_cleanly() {
+        let p = Path::new(P);
+        let e = parse_pcd(p, b"FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nPOINTS 1000000000000\nDATA ascii\n1 2 3\n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("truncated"), "{e}");
+        // A compressed block claiming 4 GB of output from 2 bytes.
+        let mut b = b"FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nPOINTS 1\nDATA binary_compressed\n".to_vec();
+        b.extend_from_slice(&2u32.to_le_bytes());
+        b.extend_from_slice(&u32::MAX.to_le_bytes());
+        b.extend_from_slice(&[0, 7]);
+        let e = parse_pcd(p, &b).unwrap_err().to_string();
+        assert!(e.contains("LZF"), "{e}");
     }
 
     #[test]

@@ -230,7 +230,9 @@ fn read_ascii(
         .split(|&b| b == b'\n')
         .enumerate()
         .filter(|(_, l)| !l.iter().all(|b| b.is_ascii_whitespace()));
-    let mut out = Vec::with_capacity(h.elements[vi].count);
+    // A header may declare more rows than the file holds: reserve no more than the bytes
+    // could hold (an ascii vertex takes at least 6 bytes).
+    let mut out = Vec::with_capacity(h.elements[vi].count.min(text.len() / 6));
     for (ei, el) in h.elements.iter().enumerate().take(vi + 1) {
         for k in 0..el.count {
             let (li, raw) = lines.next().ok_or_else(|| {
@@ -316,7 +318,17 @@ fn read_binary(
             })
             .sum();
         if ei == vi {
-            out.reserve(el.count);
+            let min_row: usize = el
+                .props
+                .iter()
+                .map(|p| match p {
+                    Property::Scalar(t, _) | Property::List(t, _, _) => t.size(),
+                })
+                .sum();
+            out.reserve(
+                el.count
+                    .min(bytes.len().saturating_sub(pos) / min_row.max(1)),
+            );
         }
         if let (Some(size), true) = (fixed, ei != vi) {
             let len = size
@@ -515,6 +527,16 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("unknown format"), "{e}");
+    }
+
+    #[test]
+    fn overstated_counts_fail_cleanly() {
+        let p = Path::new(P);
+        for fmt in ["ascii", "binary_little_endian"] {
+            let h = format!("ply\nformat {fmt} 1.0\nelement vertex 1000000000000\nproperty float x\nproperty float y\nproperty float z\nend_header\n");
+            let e = parse_ply(p, h.as_bytes()).unwrap_err().to_string();
+            assert!(e.contains("truncated"), "{e}");
+        }
     }
 
     #[test]

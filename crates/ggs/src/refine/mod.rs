@@ -267,10 +267,36 @@ fn refine_in_pool(
     let d_c = match cfg.correspondence {
         CorrespondenceDistance::Fixed(d) => d,
         CorrespondenceDistance::Quantile(q) => {
+            // Quantile of the positive distances: points that already coincide (duplicated
+            // scans, tiny clouds) must not drive d_c to 0.
             let mut d: Vec<f64> = src
                 .par_iter()
                 .map(|p| tindex.nearest(&t.apply(p)).1.sqrt())
+                .filter(|&d| d > 0.0)
                 .collect();
+            if d.is_empty() {
+                // Every source point sits on a target point: nothing to refine.
+                let report = quality(
+                    src,
+                    tgt,
+                    &tindex,
+                    &tshapes,
+                    &t,
+                    f64::MIN_POSITIVE,
+                    radius,
+                    0,
+                    true,
+                    "exact overlap".into(),
+                );
+                return Ok(RefineResult {
+                    transform: t,
+                    report,
+                    method: cfg.method,
+                    setup_ms: t0.elapsed().as_secs_f64() * 1e3,
+                    iterate_ms: 0.0,
+                    total_ms: t0.elapsed().as_secs_f64() * 1e3,
+                });
+            }
             quantile(&mut d, q)
         }
     };
