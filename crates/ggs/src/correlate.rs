@@ -98,23 +98,28 @@ impl Geometry {
         self.fft_len[2] / 2 + 1
     }
 
-    /// Bytes of the kernel spectrum (shared by all workers).
+    /// Bytes of the kernel spectrum (shared by all workers), saturating at `u64::MAX`.
     pub fn kernel_bytes(&self) -> u64 {
-        (self.fft_len[0] * self.fft_len[1] * self.kz() * 16) as u64
+        saturate(self.fft_len[0] as u128 * self.fft_len[1] as u128 * self.kz() as u128 * 16)
     }
 
-    /// Bytes of one worker's buffers.
+    /// Bytes of one worker's buffers, saturating at `u64::MAX`.
     pub fn workspace_bytes(&self) -> u64 {
-        let [lx, ly, lz] = self.fft_len;
-        let kz = self.kz();
-        let ax = self.source_max[0].max(self.kernel_dims[0]);
-        let ay = self.source_max[1].max(self.kernel_dims[1]);
+        let [lx, ly, lz] = self.fft_len.map(|v| v as u128);
+        let kz = self.kz() as u128;
+        let ax = self.source_max[0].max(self.kernel_dims[0]) as u128;
+        let ay = self.source_max[1].max(self.kernel_dims[1]) as u128;
         let real = ax * ay * lz * 8;
         let zspec = ax * ay * kz * 16;
         let grid = ly * kz * lx * 16;
-        let slab = X_BLOCK * kz * ly * 16;
-        (real + zspec + grid + slab + 4 * (lx + ly + lz) * 16) as u64
+        let slab = X_BLOCK as u128 * kz * ly * 16;
+        saturate(real + zspec + grid + slab + 4 * (lx + ly + lz) * 16)
     }
+}
+
+/// `v` as u64, or `u64::MAX` when it does not fit.
+fn saturate(v: u128) -> u64 {
+    u64::try_from(v).unwrap_or(u64::MAX)
 }
 
 /// CPU correlator: FFT plans and the conjugate kernel spectrum of one target, shared by all
@@ -509,6 +514,13 @@ mod tests {
         assert_eq!(fast_len(1, true), 2);
         assert!(is_7_smooth(2 * 3 * 5 * 7 * 7));
         assert!(!is_7_smooth(22));
+    }
+
+    #[test]
+    fn byte_counts_saturate_instead_of_wrapping() {
+        let g = Geometry::new([9_000_000; 3], [9_000_000; 3]);
+        assert_eq!(g.kernel_bytes(), u64::MAX);
+        assert_eq!(g.workspace_bytes(), u64::MAX);
     }
 
     #[test]

@@ -456,10 +456,14 @@ struct MemoryModel {
 impl MemoryModel {
     /// Kernel spectrum, one workspace per thread, kernel occupancy and the centred points.
     fn bytes(&self, geo: &Geometry) -> u64 {
+        let cells = geo
+            .kernel_dims
+            .iter()
+            .fold(1u64, |a, &d| a.saturating_mul(d as u64));
         geo.kernel_bytes()
-            + self.threads as u64 * geo.workspace_bytes()
-            + geo.kernel_dims.iter().product::<usize>() as u64
-            + (self.points * 24) as u64
+            .saturating_add((self.threads as u64).saturating_mul(geo.workspace_bytes()))
+            .saturating_add(cells)
+            .saturating_add((self.points as u64).saturating_mul(24))
     }
 
     /// Upper bound of `bytes` at voxel `s`, from the source's bounding sphere.
