@@ -99,8 +99,8 @@ pub fn read_matrix(path: &Path) -> Result<Rigid> {
 pub fn print_report(r: &RefineResult) -> Result<()> {
     let q = &r.report;
     outln!(
-        "refine      {:?}: {} iterations, {} ({}), {:.0} ms",
-        r.method,
+        "refine      {}: {} iterations, {} ({}), {:.0} ms",
+        r.method.name(),
         q.iterations,
         if q.converged {
             "converged"

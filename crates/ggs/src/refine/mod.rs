@@ -50,6 +50,15 @@ pub enum Method {
 }
 
 impl Method {
+    /// The name used on the command line and in JSON.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Method::P2p => "p2p",
+            Method::P2plane => "p2plane",
+            Method::Gicp => "gicp",
+        }
+    }
+
     pub fn from_name(s: &str) -> Option<Method> {
         Some(match s {
             "p2p" => Method::P2p,
