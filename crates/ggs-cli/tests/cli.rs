@@ -16,6 +16,14 @@ fn ggs(args: &[&str]) -> Output {
         .expect("run ggs")
 }
 
+/// `ggs register bun0.pcd bun4.pcd --voxel 0.006` on the bundled pair, plus `extra`.
+fn register_pair(extra: &[&str]) -> Output {
+    let (b0, b4) = (data("bun0.pcd"), data("bun4.pcd"));
+    let mut args = vec!["register", s(&b0), s(&b4), "--voxel", "0.006"];
+    args.extend_from_slice(extra);
+    ggs(&args)
+}
+
 fn tmp(tag: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("ggs-cli-{tag}-{}", std::process::id()));
     std::fs::create_dir_all(&d).unwrap();
@@ -54,13 +62,7 @@ fn rre(a: &[f64], b: &[f64]) -> f64 {
 
 #[test]
 fn register_prints_matrix_and_summary() {
-    let out = ggs(&[
-        "register",
-        s(&data("bun0.pcd")),
-        s(&data("bun4.pcd")),
-        "--voxel",
-        "0.006",
-    ]);
+    let out = register_pair(&[]);
     assert!(
         out.status.success(),
         "{}",
@@ -92,12 +94,7 @@ fn json_output_and_files() {
         d.join("aligned.ply"),
         d.join("overlay.ply"),
     );
-    let out = ggs(&[
-        "register",
-        s(&data("bun0.pcd")),
-        s(&data("bun4.pcd")),
-        "--voxel",
-        "0.006",
+    let out = register_pair(&[
         "--json",
         "--top-k",
         "3",
@@ -204,24 +201,8 @@ fn rotations_command_writes_npy() {
     let a = ggs::io::npy::read_npy(&p).unwrap();
     assert_eq!(a.shape, vec![1886, 3, 3]);
     // Registering with the written file gives the same answer as the named set.
-    let by_name = ggs(&[
-        "register",
-        s(&data("bun0.pcd")),
-        s(&data("bun4.pcd")),
-        "--voxel",
-        "0.006",
-        "--json",
-    ]);
-    let by_file = ggs(&[
-        "register",
-        s(&data("bun0.pcd")),
-        s(&data("bun4.pcd")),
-        "--voxel",
-        "0.006",
-        "--json",
-        "--rotations-file",
-        s(&p),
-    ]);
+    let by_name = register_pair(&["--json"]);
+    let by_file = register_pair(&["--json", "--rotations-file", s(&p)]);
     let a: serde_json::Value = serde_json::from_slice(&by_name.stdout).unwrap();
     let b: serde_json::Value = serde_json::from_slice(&by_file.stdout).unwrap();
     assert_eq!(a["transform"], b["transform"]);
@@ -252,9 +233,7 @@ fn closed_stdout_is_not_a_panic() {
 
 #[test]
 fn register_refines_with_gicp_by_default() {
-    let (b0, b4) = (data("bun0.pcd"), data("bun4.pcd"));
-    let args = ["register", s(&b0), s(&b4), "--voxel", "0.006", "--json"];
-    let out = ggs(&args);
+    let out = register_pair(&["--json"]);
     assert!(
         out.status.success(),
         "{}",
@@ -273,9 +252,8 @@ fn register_refines_with_gicp_by_default() {
         .flat_map(|r| r.as_array().unwrap().iter().map(|v| v.as_f64().unwrap()))
         .collect();
     assert!(rre(&m, &gt) < 1.0, "RRE {}", rre(&m, &gt));
-    let mut none = args.to_vec();
-    none.extend(["--refine", "none"]);
-    let j: serde_json::Value = serde_json::from_slice(&ggs(&none).stdout).unwrap();
+    let j: serde_json::Value =
+        serde_json::from_slice(&register_pair(&["--json", "--refine", "none"]).stdout).unwrap();
     assert!(j["refine"].is_null());
     assert_eq!(j["transform"], j["coarse_transform"]);
 }

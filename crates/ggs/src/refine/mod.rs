@@ -273,8 +273,9 @@ fn refine_in_pool(
         .max(1e-12);
 
     let mut t = *init;
+    // `None`: every source point already sits on a target point, nothing to refine.
     let d_c = match cfg.correspondence {
-        CorrespondenceDistance::Fixed(d) => d,
+        CorrespondenceDistance::Fixed(d) => Some(d),
         CorrespondenceDistance::Quantile(q) => {
             // Quantile of the positive distances: points that already coincide (duplicated
             // scans, tiny clouds) must not drive d_c to 0.
@@ -283,32 +284,11 @@ fn refine_in_pool(
                 .map(|p| tindex.nearest(&t.apply(p)).1.sqrt())
                 .filter(|&d| d > 0.0)
                 .collect();
-            if d.is_empty() {
-                // Every source point sits on a target point: nothing to refine.
-                let report = quality(
-                    src,
-                    tgt,
-                    &tindex,
-                    &tshapes,
-                    &t,
-                    f64::MIN_POSITIVE,
-                    radius,
-                    0,
-                    true,
-                    "exact overlap".into(),
-                );
-                return Ok(RefineResult {
-                    transform: t,
-                    report,
-                    method: cfg.method,
-                    setup_ms: t0.elapsed().as_secs_f64() * 1e3,
-                    iterate_ms: 0.0,
-                    total_ms: t0.elapsed().as_secs_f64() * 1e3,
-                });
-            }
-            quantile(&mut d, q)
+            (!d.is_empty()).then(|| quantile(&mut d, q))
         }
     };
+    let exact = d_c.is_none();
+    let d_c = d_c.unwrap_or(f64::MIN_POSITIVE);
     if !(d_c.is_finite() && d_c > 0.0) {
         return Err(GgsError::param(
             "correspondence",
@@ -323,9 +303,15 @@ fn refine_in_pool(
     // settled (a two-cycle, where one correspondence flips in and out, counts too).
     let mut history: Vec<(f64, f64)> = Vec::with_capacity(2);
     let mut iterations = 0;
-    let mut converged = false;
-    let mut stop_reason = "max iterations".to_string();
-    for _ in 0..cfg.max_iterations {
+    let mut converged = exact;
+    let mut stop_reason = if exact {
+        "exact overlap"
+    } else {
+        "max iterations"
+    }
+    .to_string();
+    let max_iterations = if exact { 0 } else { cfg.max_iterations };
+    for _ in 0..max_iterations {
         let r = t.rotation;
         let tt = t.translation;
         // Accumulate in fixed chunks, then sum the chunks in order: thread-count independent.
