@@ -41,6 +41,15 @@ fn matrix_from_text(text: &str) -> Vec<f64> {
         .collect()
 }
 
+/// A 4×4 JSON matrix (array of rows) as 16 row-major numbers.
+fn json_matrix(v: &serde_json::Value) -> Vec<f64> {
+    v.as_array()
+        .unwrap()
+        .iter()
+        .flat_map(|r| r.as_array().unwrap().iter().map(|x| x.as_f64().unwrap()))
+        .collect()
+}
+
 fn ground_truth() -> Vec<f64> {
     let text = std::fs::read_to_string(data("bun0_to_bun4_groundtruth.txt")).unwrap();
     text.lines()
@@ -117,12 +126,7 @@ fn json_output_and_files() {
     assert_eq!(j["result"]["rotations"], 1886);
     assert_eq!(j["result"]["threads"], 2);
     assert!(j["result"]["timings"]["search_ms"].as_f64().unwrap() > 0.0);
-    let rows: Vec<f64> = j["transform"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .flat_map(|r| r.as_array().unwrap().iter().map(|v| v.as_f64().unwrap()))
-        .collect();
+    let rows: Vec<f64> = json_matrix(&j["transform"]);
     // The matrix file holds the same numbers, exactly.
     assert_eq!(
         matrix_from_text(&std::fs::read_to_string(&t).unwrap()),
@@ -245,12 +249,7 @@ fn register_refines_with_gicp_by_default() {
     assert!(rep["fitness_source"].as_f64().unwrap() > 0.2);
     assert!(rep["converged"].as_bool().unwrap());
     let gt = ground_truth();
-    let m: Vec<f64> = j["transform"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .flat_map(|r| r.as_array().unwrap().iter().map(|v| v.as_f64().unwrap()))
-        .collect();
+    let m: Vec<f64> = json_matrix(&j["transform"]);
     assert!(rre(&m, &gt) < 1.0, "RRE {}", rre(&m, &gt));
     let j: serde_json::Value =
         serde_json::from_slice(&register_pair(&["--json", "--refine", "none"]).stdout).unwrap();
@@ -296,12 +295,7 @@ fn refine_command_from_an_initial_guess() {
             String::from_utf8_lossy(&out.stderr)
         );
         let j: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
-        let t: Vec<f64> = j["transform"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .flat_map(|r| r.as_array().unwrap().iter().map(|v| v.as_f64().unwrap()))
-            .collect();
+        let t: Vec<f64> = json_matrix(&j["transform"]);
         assert!(rre(&t, &gt) < rre(&m, &gt), "{method} made it worse");
     }
     let bad = d.join("bad.txt");
