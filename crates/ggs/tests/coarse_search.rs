@@ -214,3 +214,31 @@ fn cancellation_stops_the_search() {
         Err(ggs::GgsError::Cancelled)
     ));
 }
+
+#[test]
+fn georeferenced_coordinates_give_the_same_answer() {
+    let dir = common::repo_root().join("tests/data");
+    let source = read_cloud(&dir.join("bun0.pcd"), None).unwrap().cloud;
+    let target = read_cloud(&dir.join("bun4.pcd"), None).unwrap().cloud;
+    let far = Rigid::new(
+        nalgebra::Matrix3::identity(),
+        Vector3::new(5.0e5, 4.2e6, 120.0),
+    );
+    let cfg = SearchConfig::with_voxel(0.006);
+    let a = coarse_register(&source, &target, limited15(), &cfg).unwrap();
+    let b = coarse_register(
+        &source.transformed(&far),
+        &target.transformed(&far),
+        limited15(),
+        &cfg,
+    )
+    .unwrap();
+    assert_eq!(a.rotation_index, b.rotation_index);
+    assert_eq!(a.score, b.score);
+    let back = far.inverse().compose(&b.transform).compose(&far);
+    assert!(
+        rte(&a.transform, &back) < 1e-6,
+        "{}",
+        rte(&a.transform, &back)
+    );
+}

@@ -170,6 +170,52 @@ fn identical_for_any_thread_count() {
 }
 
 #[test]
+fn georeferenced_coordinates_keep_their_precision() {
+    let dir = common::repo_root().join("tests/data");
+    let source = read_cloud(&dir.join("bun0.pcd"), None).unwrap().cloud;
+    let target = read_cloud(&dir.join("bun4.pcd"), None).unwrap().cloud;
+    let truth = small_motion();
+    let near = truth.compose(&Rigid::new(
+        exp_so3(&Vector3::new(0.01, 0.0, 0.0)),
+        Vector3::zeros(),
+    ));
+    // The same problem, with both clouds moved to UTM-like coordinates.
+    let far = Rigid::new(
+        nalgebra::Matrix3::identity(),
+        Vector3::new(5.0e5, 4.2e6, 120.0),
+    );
+    let (s2, t2) = (source.transformed(&far), target.transformed(&far));
+    // In the far frame the transform is far·T·far⁻¹.
+    let to_far = |t: &Rigid| far.compose(t).compose(&far.inverse());
+    for method in [Method::P2p, Method::P2plane, Method::Gicp] {
+        let cfg = RefineConfig {
+            method,
+            ..RefineConfig::default()
+        };
+        let a = refine(
+            &source,
+            &target.transformed(&truth.compose(&Rigid::identity())),
+            &near,
+            &cfg,
+        )
+        .unwrap();
+        let b = refine(&s2, &t2.transformed(&to_far(&truth)), &to_far(&near), &cfg).unwrap();
+        let back = far.inverse().compose(&b.transform).compose(&far);
+        assert!(
+            rre(&a.transform, &back) < 1e-6,
+            "{method:?}: {}",
+            rre(&a.transform, &back)
+        );
+        assert!(
+            rte(&a.transform, &back) < 1e-6,
+            "{method:?}: {}",
+            rte(&a.transform, &back)
+        );
+        assert_eq!(a.report.iterations, b.report.iterations, "{method:?}");
+    }
+}
+
+#[test]
 fn bad_parameters_are_errors() {
     let c = grid_cloud(1);
     let bad = [

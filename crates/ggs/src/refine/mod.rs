@@ -239,8 +239,26 @@ pub fn refine(
         }
         _ => {}
     }
+    // Work in a frame centred on the target's centroid: georeferenced clouds (UTM
+    // coordinates of 1e6 m) would otherwise lose precision in the cross products and sums.
+    // With c the centroid, T_local = Tr(−c)·T·Tr(c) and T = Tr(c)·T_local·Tr(−c).
+    let c = Vector3::from(target.centroid().expect("non-empty"));
+    let shift = |cloud: &Cloud| {
+        Cloud::new(
+            cloud
+                .points
+                .iter()
+                .map(|p| [p[0] - c.x, p[1] - c.y, p[2] - c.z])
+                .collect(),
+        )
+    };
+    let (src_l, tgt_l) = (shift(source), shift(target));
+    let init_l = Rigid::new(init.rotation, init.rotation * c + init.translation - c);
     let (pool, _) = crate::threads::pool(cfg.threads)?;
-    pool.install(|| refine_in_pool(source, target, init, cfg))
+    let mut r = pool.install(|| refine_in_pool(&src_l, &tgt_l, &init_l, cfg))?;
+    let t = r.transform;
+    r.transform = Rigid::new(t.rotation, t.translation + c - t.rotation * c);
+    Ok(r)
 }
 
 fn refine_in_pool(
