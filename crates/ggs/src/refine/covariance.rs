@@ -7,6 +7,7 @@
 //! definite, whatever the neighbourhood (repeated or collinear points give some orthonormal
 //! basis, never NaN). `planarity = (λ₂ − λ₁)/λ₃` (0 for a degenerate neighbourhood).
 
+use super::grid::{median_kth_distance, CellGrid, KNN_CELL_FACTOR};
 use super::neighbors::PointIndex;
 use crate::cloud::Point;
 use nalgebra::{Matrix3, SymmetricEigen, Vector3};
@@ -37,6 +38,42 @@ fn sorted_eigen(m: &Matrix3<f64>) -> (Vector3<f64>, Matrix3<f64>) {
         e.eigenvectors.column(idx[2]).into_owned(),
     ]);
     (vals, vecs)
+}
+
+/// Unit eigenvector of the smallest eigenvalue of a symmetric 3×3 matrix in closed form, or
+/// `None` when it is ill-determined (the two smallest eigenvalues closer than a thousandth of
+/// the spread, or an isotropic matrix): the caller then uses the iterative solver.
+///
+/// Eigenvalues by the trigonometric formula (Smith 1961): with `m = tr(A)/3`,
+/// `p = sqrt(tr((A − mI)²)/6)` and `B = (A − mI)/p`, `λ_min = m + 2p·cos(acos(det(B)/2)/3 +
+/// 2π/3)`. The eigenvector is the largest cross product of two rows of `A − λ_min·I` (each
+/// row is orthogonal to it).
+pub fn smallest_eigenvector(a: &Matrix3<f64>) -> Option<Vector3<f64>> {
+    let m = a.trace() / 3.0;
+    let b = a - Matrix3::from_diagonal_element(m);
+    let p = ((b * b).trace() / 6.0).sqrt();
+    if !(p.is_finite() && p > 0.0) {
+        return None;
+    }
+    let r = ((b / p).determinant() / 2.0).clamp(-1.0, 1.0);
+    let phi = r.acos() / 3.0;
+    let lambda = m + 2.0 * p * (phi + 2.0 * std::f64::consts::FRAC_PI_3).cos();
+    let c = a - Matrix3::from_diagonal_element(lambda);
+    let (r0, r1, r2) = (
+        c.row(0).transpose(),
+        c.row(1).transpose(),
+        c.row(2).transpose(),
+    );
+    let mut best = r0.cross(&r1);
+    for v in [r0.cross(&r2), r1.cross(&r2)] {
+        if v.norm_squared() > best.norm_squared() {
+            best = v;
+        }
+    }
+    // Spread of the eigenvalues is 3p at most; the cross product's norm is about
+    // (λ_mid − λ_min)·(λ_max − λ_min).
+    let norm = best.norm();
+    (norm > 1e-3 * (3.0 * p) * (3.0 * p)).then(|| best / norm)
 }
 
 /// Running sums of a neighbourhood: count, Σd and Σddᵀ of `d = p − anchor` (the query
@@ -82,8 +119,10 @@ impl Moments {
         if !cov.iter().all(|v| v.is_finite()) {
             return fallback;
         }
-        let (_, v) = sorted_eigen(&cov);
-        let normal = v.column(0).into_owned();
+        let normal = smallest_eigenvector(&cov).unwrap_or_else(|| {
+            let (_, v) = sorted_eigen(&cov);
+            v.column(0).into_owned()
+        });
         if !normal.iter().all(|x| x.is_finite()) || (normal.norm() - 1.0).abs() > 1e-6 {
             return fallback;
         }
@@ -101,14 +140,28 @@ pub fn shape_of(points: &[Point], epsilon: f64) -> LocalShape {
     m.shape(epsilon)
 }
 
-/// Shapes of all points of a cloud from their `k` nearest neighbours (k-d tree), in
-/// parallel; each point independently, so the result does not depend on the thread count.
+/// Shapes of all points of a cloud from their `k` nearest neighbours, in parallel; each
+/// point independently, so the result does not depend on the thread count. The neighbours
+/// come from a [`CellGrid`] sized by [`median_kth_distance`] (exact: the k-d tree answers what the
+/// grid cannot certify), or from the tree alone for clouds the grid cannot bucket.
 pub fn local_shapes(
     points: &[Point],
     index: &PointIndex,
     k: usize,
     epsilon: f64,
 ) -> Vec<LocalShape> {
+    let shape = |i: usize, _: &[u32], nbrs: &[Point]| {
+        let mut m = Moments::new(&points[i]);
+        for p in nbrs {
+            m.push(p);
+        }
+        m.shape(epsilon)
+    };
+    if let Some(r) = median_kth_distance(points, index, k) {
+        if let Some(grid) = CellGrid::new(points, r * KNN_CELL_FACTOR) {
+            return grid.map_knn(points, k, 1.5 * r, index, shape);
+        }
+    }
     points
         .par_iter()
         .map(|p| {
@@ -142,6 +195,21 @@ impl<'a> LazyShapes<'a> {
                 .map(|_| std::sync::OnceLock::new())
                 .collect(),
         }
+    }
+
+    /// All shapes computed now, in parallel ([`local_shapes`]): for estimators that need
+    /// nearly every point's shape, the grid's batched neighbour search is cheaper than one
+    /// tree query per point.
+    pub fn eager(points: &'a [Point], index: &'a PointIndex, k: usize, epsilon: f64) -> Self {
+        let shapes = Self::new(points, index, k, epsilon);
+        for (cell, s) in shapes
+            .cache
+            .iter()
+            .zip(local_shapes(points, index, k, epsilon))
+        {
+            cell.set(s).expect("fresh cache");
+        }
+        shapes
     }
 
     /// The shape of point `i`.
@@ -199,10 +267,50 @@ mod tests {
         let eager = local_shapes(&pts, &idx, 20, 1e-3);
         let lazy = LazyShapes::new(&pts, &idx, 20, 1e-3);
         assert_eq!(lazy.computed(), 0);
+        // The same neighbours (tree or grid), summed in a different order.
         for i in (0..200).rev() {
-            assert_eq!(*lazy.get(i), eager[i]);
+            let (a, b) = (lazy.get(i), &eager[i]);
+            assert!((a.normal.dot(&b.normal).abs() - 1.0).abs() < 1e-12, "{i}");
+            assert!((a.covariance - b.covariance).amax() < 1e-12, "{i}");
         }
         assert_eq!(lazy.computed(), 200);
+    }
+
+    #[test]
+    fn closed_form_normal_matches_the_iterative_solver() {
+        let mut seed = 99u64;
+        let mut r = || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        let mut checked = 0;
+        for _ in 0..2000 {
+            // Random rotation of a random diagonal (spreads from isotropic to flat).
+            let q = nalgebra::UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(
+                r(),
+                r(),
+                r(),
+                r(),
+            ));
+            let scale = 10f64.powf(6.0 * r());
+            let d = Vector3::new(r().abs() * 1e-2, r().abs() + 0.01, r().abs() + 0.5) * scale;
+            let rm = q.to_rotation_matrix().into_inner();
+            let a = rm * Matrix3::from_diagonal(&d) * rm.transpose();
+            let (_, v) = sorted_eigen(&a);
+            if let Some(n) = smallest_eigenvector(&a) {
+                assert!((n.dot(&v.column(0)).abs() - 1.0).abs() < 1e-9, "{a}");
+                checked += 1;
+            }
+        }
+        assert!(checked > 1900, "{checked}");
+        // Isotropic and double-smallest matrices defer to the iterative solver.
+        assert!(smallest_eigenvector(&Matrix3::identity()).is_none());
+        assert!(
+            smallest_eigenvector(&Matrix3::from_diagonal(&Vector3::new(1.0, 1.0, 2.0))).is_none()
+        );
+        assert!(smallest_eigenvector(&Matrix3::zeros()).is_none());
     }
 
     #[test]

@@ -25,6 +25,7 @@
 
 pub mod covariance;
 pub mod estimators;
+pub mod grid;
 pub mod neighbors;
 
 use crate::cloud::{Cloud, Point};
@@ -32,6 +33,7 @@ use crate::error::{GgsError, Result};
 use crate::transform::Rigid;
 use covariance::LazyShapes;
 use estimators::{exp_so3, kabsch, orthonormalize, KabschSums, NormalEquations};
+use grid::RadiusSearch;
 use nalgebra::{Matrix3, Matrix6, SymmetricEigen, Vector3};
 use neighbors::PointIndex;
 use rayon::prelude::*;
@@ -202,6 +204,48 @@ pub fn quantile(values: &mut [f64], q: f64) -> f64 {
     values[lo] + (values[hi] - values[lo]) * (pos - lo as f64)
 }
 
+/// The `q` quantile of the positive distances from each moved source point `T·p` to its
+/// nearest target point (`None` when every distance is 0). Most source points of a coarse
+/// alignment lie within a few point spacings of the target: those are found on a grid of
+/// radius `R` (the target's median k-th-neighbour distance), the others only count as
+/// "farther than `R`" unless the quantile falls among them, when the k-d tree measures them.
+/// The result equals the all-tree computation.
+fn nearest_distance_quantile(
+    src: &[Point],
+    t: &Rigid,
+    tgt: &[Point],
+    tindex: &PointIndex,
+    k: usize,
+    q: f64,
+) -> Option<f64> {
+    let near = grid::median_kth_distance(tgt, tindex, k).map(|r| RadiusSearch::new(tgt, r));
+    let nearest = |p: &Point, exact: bool| -> f64 {
+        let m = t.apply(p);
+        match (&near, exact) {
+            (Some(g), false) => g.nearest(&m).map_or(f64::INFINITY, |n| n.1.sqrt()),
+            _ => tindex.nearest(&m).1.sqrt(),
+        }
+    };
+    let mut d: Vec<f64> = src
+        .par_iter()
+        .map(|p| nearest(p, false))
+        .filter(|&d| d > 0.0)
+        .collect();
+    if d.is_empty() {
+        return None;
+    }
+    let v = quantile(&mut d, q);
+    if v.is_finite() {
+        return Some(v);
+    }
+    let mut d: Vec<f64> = src
+        .par_iter()
+        .map(|p| nearest(p, true))
+        .filter(|&d| d > 0.0)
+        .collect();
+    (!d.is_empty()).then(|| quantile(&mut d, q))
+}
+
 /// Per-iteration statistics at the current pose.
 #[derive(Default, Clone, Copy)]
 struct Stats {
@@ -270,15 +314,26 @@ fn refine_in_pool(
     let t0 = Instant::now();
     let src = &source.points;
     let tgt = &target.points;
-    let tindex = PointIndex::new(tgt);
     // Target normals serve every method: point-to-plane residuals, GICP covariances and the
-    // information matrix of the quality report.
-    let tshapes = LazyShapes::new(tgt, &tindex, cfg.neighbors, cfg.epsilon);
-    // Source shapes only for GICP.
-    let sindex = (cfg.method == Method::Gicp).then(|| PointIndex::new(src));
-    let sshapes = sindex
-        .as_ref()
-        .map(|ix| LazyShapes::new(src, ix, cfg.neighbors, cfg.epsilon));
+    // information matrix of the quality report (the only use for point-to-point, which needs
+    // them at the inliers of the final pose alone, hence lazily). Source shapes for GICP only.
+    let gicp = cfg.method == Method::Gicp;
+    let (tindex, sindex) = rayon::join(
+        || PointIndex::new(tgt),
+        || gicp.then(|| PointIndex::new(src)),
+    );
+    tracing::debug!(ms = t0.elapsed().as_secs_f64() * 1e3, "trees");
+    let (tshapes, sshapes) = rayon::join(
+        || match cfg.method {
+            Method::P2p => LazyShapes::new(tgt, &tindex, cfg.neighbors, cfg.epsilon),
+            _ => LazyShapes::eager(tgt, &tindex, cfg.neighbors, cfg.epsilon),
+        },
+        || {
+            sindex
+                .as_ref()
+                .map(|ix| LazyShapes::eager(src, ix, cfg.neighbors, cfg.epsilon))
+        },
+    );
     tracing::debug!(
         ms = t0.elapsed().as_secs_f64() * 1e3,
         "trees and local shapes"
@@ -297,14 +352,13 @@ fn refine_in_pool(
         CorrespondenceDistance::Quantile(q) => {
             // Quantile of the positive distances: points that already coincide (duplicated
             // scans, tiny clouds) must not drive d_c to 0.
-            let mut d: Vec<f64> = src
-                .par_iter()
-                .map(|p| tindex.nearest(&t.apply(p)).1.sqrt())
-                .filter(|&d| d > 0.0)
-                .collect();
-            (!d.is_empty()).then(|| quantile(&mut d, q))
+            nearest_distance_quantile(src, &t, tgt, &tindex, cfg.neighbors, q)
         }
     };
+    tracing::debug!(
+        ms = t0.elapsed().as_secs_f64() * 1e3,
+        "correspondence distance"
+    );
     let exact = d_c.is_none();
     let d_c = d_c.unwrap_or(f64::MIN_POSITIVE);
     if !(d_c.is_finite() && d_c > 0.0) {
@@ -315,7 +369,7 @@ fn refine_in_pool(
     }
     let setup_ms = t0.elapsed().as_secs_f64() * 1e3;
     let t1 = Instant::now();
-    let d2 = d_c * d_c;
+    let tsearch = RadiusSearch::new(tgt, d_c);
     let min_pairs = if cfg.method == Method::P2p { 3 } else { 6 };
     // (fitness, rmse) of the last two iterations: a repeat of either means the loop has
     // settled (a two-cycle, where one correspondence flips in and out, counts too).
@@ -342,7 +396,7 @@ fn refine_in_pool(
                 let mut ks = KabschSums::default();
                 for (k, p) in chunk.iter().enumerate() {
                     let pm = r * v3(p) + tt;
-                    let Some((j, dd)) = tindex.nearest_within(&[pm.x, pm.y, pm.z], d2) else {
+                    let Some((j, dd)) = tsearch.nearest(&[pm.x, pm.y, pm.z]) else {
                         continue;
                     };
                     st.inliers += 1;
@@ -439,7 +493,7 @@ fn refine_in_pool(
     let report = quality(
         src,
         tgt,
-        &tindex,
+        &tsearch,
         &tshapes,
         &t,
         d_c,
@@ -462,7 +516,7 @@ fn refine_in_pool(
 fn quality(
     src: &[Point],
     tgt: &[Point],
-    tindex: &PointIndex,
+    tsearch: &RadiusSearch,
     tshapes: &LazyShapes,
     t: &Rigid,
     d_c: f64,
@@ -471,7 +525,6 @@ fn quality(
     converged: bool,
     stop_reason: String,
 ) -> QualityReport {
-    let d2 = d_c * d_c;
     let moved: Vec<Point> = src.iter().map(|p| t.apply(p)).collect();
     let parts: Vec<(usize, f64, Matrix6<f64>)> = moved
         .par_chunks(CHUNK)
@@ -480,7 +533,7 @@ fn quality(
             let mut sq = 0.0;
             let mut h = Matrix6::zeros();
             for p in chunk {
-                if let Some((j, dd)) = tindex.nearest_within(p, d2) {
+                if let Some((j, dd)) = tsearch.nearest(p) {
                     n_in += 1;
                     sq += dd;
                     let n = tshapes.get(j).normal;
@@ -498,14 +551,10 @@ fn quality(
         sq += s;
         h += m;
     }
-    let mindex = PointIndex::new(&moved);
+    let msearch = RadiusSearch::new(&moved, d_c);
     let target_in: usize = tgt
         .par_chunks(CHUNK)
-        .map(|c| {
-            c.iter()
-                .filter(|q| mindex.nearest_within(q, d2).is_some())
-                .count()
-        })
+        .map(|c| c.iter().filter(|q| msearch.nearest(q).is_some()).count())
         .collect::<Vec<_>>()
         .iter()
         .sum();

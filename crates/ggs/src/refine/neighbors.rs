@@ -63,6 +63,16 @@ impl PointIndex {
         }
     }
 
+    /// Distance (not squared) to the `k`-th nearest point (the last one if the set is
+    /// smaller); the query point itself counts when it belongs to the set.
+    pub fn kth_distance(&self, q: &Point, k: usize) -> f64 {
+        let k = NonZero::new(k.min(self.len).max(1)).expect("k ≥ 1");
+        self.tree
+            .nearest_n::<SquaredEuclidean>(q, k)
+            .last()
+            .map_or(f64::INFINITY, |n| n.distance.sqrt())
+    }
+
     /// Indices of the `k` nearest points (fewer if the set is smaller), nearest first.
     pub fn k_nearest(&self, q: &Point, k: usize) -> Vec<usize> {
         let k = NonZero::new(k.min(self.len).max(1)).expect("k ≥ 1");

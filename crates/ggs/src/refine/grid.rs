@@ -1,0 +1,604 @@
+//! A uniform grid of cubic cells over a cloud, for the exact neighbour searches of refinement
+//! whose radius is about one cell:
+//!
+//! - the k nearest neighbours of every point of the cloud ([`CellGrid::map_knn`]): the points
+//!   of one cell share their candidates (the 3×3×3 block of cells around it), and a point's
+//!   answer is certified when its k-th distance does not exceed its distance to the block's
+//!   boundary (no point outside the block can then be nearer); uncertified points (sparse
+//!   regions, block edges) are answered by the k-d tree, so the result is always exact;
+//! - the nearest point within a radius `r` ([`CellGrid::nearest_within`]), scanning the cells
+//!   that meet the cube of half-side `r` around the query.
+//!
+//! Cell `(i, j, k)` of size `h` covers `origin + h·[i, i+1) × [j, j+1) × [k, k+1)`, with
+//! `origin` the lower corner of the cloud's bounding box. Occupied cells are found through an
+//! open-addressing hash table, so memory grows with the points, not with the box.
+
+use super::neighbors::PointIndex;
+use crate::cloud::Point;
+use rayon::prelude::*;
+
+/// At most this many cells per axis (so a linear cell key fits 60 bits).
+const MAX_DIM: u64 = 1 << 20;
+/// Cells handed to one parallel task by [`CellGrid::map_knn`].
+const CELLS_PER_TASK: usize = 64;
+const EMPTY: u64 = u64::MAX;
+/// Cell size for k-NN searches, in median k-th-neighbour distances (measured on the bunny
+/// scans: smaller cells certify fewer points, larger ones scan more candidates).
+pub const KNN_CELL_FACTOR: f64 = 1.6;
+
+/// Dense cell tables (a start offset for every cell of the box, empty or not) are kept up
+/// to this many cells (16 MB) or 64 per point, whichever is larger.
+const DENSE_CELLS: u64 = 1 << 22;
+
+/// `⌊x⌋` as an integer, inline (`f64::floor` is a libm call on baseline x86-64); saturates
+/// for values beyond ±2^63, NaN gives 0.
+#[inline]
+fn floor_i64(x: f64) -> i64 {
+    let t = x as i64;
+    t - ((t as f64) > x) as i64
+}
+
+/// Occupied cells of a grid, hashed by linear key.
+struct CellTable {
+    keys: Vec<u64>,
+    cells: Vec<u32>,
+    shift: u32,
+}
+
+impl CellTable {
+    fn new(keys: &[u64]) -> Self {
+        let capacity = (2 * keys.len()).next_power_of_two().max(2);
+        let mut t = CellTable {
+            keys: vec![EMPTY; capacity],
+            cells: vec![0; capacity],
+            shift: 64 - capacity.trailing_zeros(),
+        };
+        for (c, &key) in keys.iter().enumerate() {
+            let mut s = t.slot(key);
+            while t.keys[s] != EMPTY {
+                s = (s + 1) & (capacity - 1);
+            }
+            t.keys[s] = key;
+            t.cells[s] = c as u32;
+        }
+        t
+    }
+
+    #[inline]
+    fn slot(&self, key: u64) -> usize {
+        (key.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> self.shift) as usize
+    }
+
+    #[inline]
+    fn get(&self, key: u64) -> Option<usize> {
+        let mask = self.keys.len() - 1;
+        let mut s = self.slot(key);
+        loop {
+            match self.keys[s] {
+                k if k == key => return Some(self.cells[s] as usize),
+                EMPTY => return None,
+                _ => s = (s + 1) & mask,
+            }
+        }
+    }
+}
+
+/// Points of a cloud bucketed into cubic cells.
+pub struct CellGrid {
+    h: f64,
+    inv_h: f64,
+    origin: [f64; 3],
+    dims: [u64; 3],
+    /// Original indices of the points, sorted by (cell key, index).
+    order: Vec<u32>,
+    /// The points in that order.
+    sorted: Vec<Point>,
+    /// Cell `c` holds `sorted[start[c]..start[c + 1]]`.
+    start: Vec<u32>,
+    /// Integer coordinates of each occupied cell.
+    coords: Vec<[u64; 3]>,
+    table: CellTable,
+    /// When the box has few enough cells: `dense[key]..dense[key + 1]` are the sorted
+    /// positions of the points in the cell with that linear key, so a run of cells along z
+    /// is one contiguous range.
+    dense: Option<Vec<u32>>,
+}
+
+impl CellGrid {
+    /// Bucket `points` into cells of size `h`; `None` when `h` is not a positive finite size
+    /// or the box would need more than 2^20 cells along an axis (the caller then uses the
+    /// k-d tree alone).
+    pub fn new(points: &[Point], h: f64) -> Option<Self> {
+        Self::with_dense_limit(points, h, DENSE_CELLS.max(64 * points.len() as u64))
+    }
+
+    /// [`Self::new`] with a dense cell table only when the box has at most `dense_limit`
+    /// cells (the hash table alone otherwise).
+    fn with_dense_limit(points: &[Point], h: f64, dense_limit: u64) -> Option<Self> {
+        if !(h.is_finite() && h > 0.0) || points.is_empty() || points.len() > u32::MAX as usize {
+            return None;
+        }
+        let mut lo = [f64::INFINITY; 3];
+        let mut hi = [f64::NEG_INFINITY; 3];
+        for p in points {
+            for a in 0..3 {
+                lo[a] = lo[a].min(p[a]);
+                hi[a] = hi[a].max(p[a]);
+            }
+        }
+        let inv_h = 1.0 / h;
+        let mut dims = [0u64; 3];
+        for a in 0..3 {
+            let n = ((hi[a] - lo[a]) * inv_h).floor() + 1.0;
+            if !(n.is_finite() && n <= MAX_DIM as f64) {
+                return None;
+            }
+            dims[a] = n as u64;
+        }
+        let mut grid = CellGrid {
+            h,
+            inv_h,
+            origin: lo,
+            dims,
+            order: Vec::new(),
+            sorted: Vec::new(),
+            start: Vec::new(),
+            coords: Vec::new(),
+            table: CellTable::new(&[]),
+            dense: None,
+        };
+        let mut keyed: Vec<(u64, u32)> = points
+            .iter()
+            .enumerate()
+            .map(|(i, p)| (grid.key(&grid.cell_of(p)), i as u32))
+            .collect();
+        keyed.sort_unstable();
+        let mut keys = Vec::new();
+        for (s, &(key, i)) in keyed.iter().enumerate() {
+            if keys.last() != Some(&key) {
+                keys.push(key);
+                grid.start.push(s as u32);
+                grid.coords.push(grid.cell_of(&points[i as usize]));
+            }
+            grid.order.push(i);
+            grid.sorted.push(points[i as usize]);
+        }
+        grid.start.push(keyed.len() as u32);
+        let total = dims[0] * dims[1] * dims[2];
+        if total <= dense_limit {
+            let mut dense = Vec::with_capacity(total as usize + 1);
+            for (c, &key) in keys.iter().enumerate() {
+                dense.resize(key as usize + 1, grid.start[c]);
+            }
+            dense.resize(total as usize + 1, keyed.len() as u32);
+            grid.dense = Some(dense);
+        }
+        grid.table = CellTable::new(&keys);
+        Some(grid)
+    }
+
+    /// Cell size.
+    pub fn cell_size(&self) -> f64 {
+        self.h
+    }
+
+    /// Number of occupied cells.
+    pub fn cells(&self) -> usize {
+        self.coords.len()
+    }
+
+    /// Cell coordinates of a point of the cloud (clamped into the box against rounding).
+    #[inline]
+    fn cell_of(&self, p: &Point) -> [u64; 3] {
+        let mut c = [0u64; 3];
+        for a in 0..3 {
+            let x = floor_i64((p[a] - self.origin[a]) * self.inv_h);
+            c[a] = (x.max(0) as u64).min(self.dims[a] - 1);
+        }
+        c
+    }
+
+    #[inline]
+    fn key(&self, c: &[u64; 3]) -> u64 {
+        (c[0] * self.dims[1] + c[1]) * self.dims[2] + c[2]
+    }
+
+    /// The occupied cell at signed coordinates, if any.
+    #[inline]
+    fn find(&self, c: [i64; 3]) -> Option<usize> {
+        for a in 0..3 {
+            if c[a] < 0 || c[a] as u64 >= self.dims[a] {
+                return None;
+            }
+        }
+        self.table
+            .get(self.key(&[c[0] as u64, c[1] as u64, c[2] as u64]))
+    }
+
+    #[inline]
+    fn range(&self, cell: usize) -> std::ops::Range<usize> {
+        self.start[cell] as usize..self.start[cell + 1] as usize
+    }
+
+    /// The nearest point within squared distance `r2` of `q` (inclusive): its original index
+    /// and squared distance; ties go to the lowest index. Scans every cell meeting the cube
+    /// `q ± r`, so it is meant for `r` up to a few cells.
+    pub fn nearest_within(&self, q: &Point, r2: f64) -> Option<(usize, f64)> {
+        // A relative margin so that rounding in the cell arithmetic never drops a cell.
+        let r = r2.sqrt() * (1.0 + 1e-9) + 1e-12 * self.h;
+        let mut lo = [0i64; 3];
+        let mut hi = [0i64; 3];
+        for a in 0..3 {
+            lo[a] = floor_i64((q[a] - r - self.origin[a]) * self.inv_h).max(0);
+            hi[a] =
+                floor_i64((q[a] + r - self.origin[a]) * self.inv_h).min(self.dims[a] as i64 - 1);
+            if lo[a] > hi[a] {
+                return None;
+            }
+        }
+        let mut best: Option<(usize, f64)> = None;
+        let mut scan = |range: std::ops::Range<usize>| {
+            for s in range {
+                let p = &self.sorted[s];
+                let d = [p[0] - q[0], p[1] - q[1], p[2] - q[2]];
+                let d2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+                if d2 > r2 {
+                    continue;
+                }
+                let idx = self.order[s] as usize;
+                let better = match best {
+                    None => true,
+                    Some((bi, bd)) => d2 < bd || (d2 == bd && idx < bi),
+                };
+                if better {
+                    best = Some((idx, d2));
+                }
+            }
+        };
+        // Squared distance from q to the slab of cells i (or j) along one axis.
+        let gap2 = |a: usize, i: i64| {
+            let cell_lo = self.origin[a] + i as f64 * self.h;
+            let g = (cell_lo - q[a]).max(q[a] - (cell_lo + self.h)).max(0.0);
+            g * g
+        };
+        for i in lo[0]..=hi[0] {
+            let gi = gap2(0, i);
+            for j in lo[1]..=hi[1] {
+                // Columns whose xy distance from q exceeds r hold no candidate (the bound is
+                // made loose by the same margin as the range).
+                if gi + gap2(1, j) > r * r {
+                    continue;
+                }
+                if let Some(dense) = &self.dense {
+                    // The cells (i, j, lo..=hi) are one contiguous run of sorted points.
+                    let k0 = self.key(&[i as u64, j as u64, lo[2] as u64]) as usize;
+                    let k1 = self.key(&[i as u64, j as u64, hi[2] as u64]) as usize;
+                    scan(dense[k0] as usize..dense[k1 + 1] as usize);
+                } else {
+                    for k in lo[2]..=hi[2] {
+                        if let Some(cell) = self.find([i, j, k]) {
+                            scan(self.range(cell));
+                        }
+                    }
+                }
+            }
+        }
+        best
+    }
+
+    /// `f(i, indices, points)` for every point `i` of the cloud, with the original indices and
+    /// the coordinates of its `k` nearest points (itself included; fewer if the cloud is
+    /// smaller), in an order fixed by the data. Returned in the cloud's order. `points` and
+    /// `tree` must hold the points the grid was built from; the tree answers the points the
+    /// grid cannot certify. `hint` is a typical k-th-neighbour distance (a little above the
+    /// median): it only speeds the search up, the answer does not depend on it.
+    pub fn map_knn<T, F>(
+        &self,
+        points: &[Point],
+        k: usize,
+        hint: f64,
+        tree: &PointIndex,
+        f: F,
+    ) -> Vec<T>
+    where
+        T: Send,
+        F: Fn(usize, &[u32], &[Point]) -> T + Sync,
+    {
+        let n = self.order.len();
+        assert_eq!(points.len(), n, "map_knn: the grid's points");
+        let k = k.min(n).max(1);
+        let hint2 = if hint > 0.0 {
+            hint * hint
+        } else {
+            f64::INFINITY
+        };
+        let chunks: Vec<Vec<T>> = (0..self.cells())
+            .collect::<Vec<_>>()
+            .par_chunks(CELLS_PER_TASK)
+            .map(|cells| {
+                let mut out = Vec::new();
+                let mut cand_pts: Vec<Point> = Vec::new();
+                let mut cand_idx: Vec<u32> = Vec::new();
+                let mut keys: Vec<u128> = Vec::new();
+                let mut cand_d2: Vec<f64> = Vec::new();
+                let mut nbr_idx: Vec<u32> = Vec::with_capacity(k);
+                let mut nbr_pts: Vec<Point> = Vec::with_capacity(k);
+                for &cell in cells {
+                    let c = self.coords[cell];
+                    cand_pts.clear();
+                    cand_idx.clear();
+                    for di in -1..=1i64 {
+                        for dj in -1..=1i64 {
+                            for dk in -1..=1i64 {
+                                let at = [c[0] as i64 + di, c[1] as i64 + dj, c[2] as i64 + dk];
+                                if let Some(nc) = self.find(at) {
+                                    let r = self.range(nc);
+                                    cand_pts.extend_from_slice(&self.sorted[r.clone()]);
+                                    cand_idx.extend_from_slice(&self.order[r]);
+                                }
+                            }
+                        }
+                    }
+                    keys.resize(cand_pts.len(), 0);
+                    cand_d2.resize(cand_pts.len(), 0.0);
+                    let mut block_lo = [0.0; 3];
+                    let mut block_hi = [0.0; 3];
+                    for a in 0..3 {
+                        block_lo[a] = self.origin[a] + (c[a] as f64 - 1.0) * self.h;
+                        block_hi[a] = self.origin[a] + (c[a] as f64 + 2.0) * self.h;
+                    }
+                    for s in self.range(cell) {
+                        let q = &self.sorted[s];
+                        let i = self.order[s] as usize;
+                        nbr_idx.clear();
+                        nbr_pts.clear();
+                        // Distance from q to the block's boundary, less a margin for the
+                        // rounding of the cell arithmetic: only candidates within it can be
+                        // certified neighbours.
+                        let mut bd = f64::INFINITY;
+                        for a in 0..3 {
+                            bd = bd.min(q[a] - block_lo[a]).min(block_hi[a] - q[a]);
+                        }
+                        bd -= 1e-9 * self.h;
+                        let bd2 = if bd > 0.0 { bd * bd } else { -1.0 };
+                        // Branch-free filter: every candidate is written, those within the
+                        // radius are kept. Keys (d² bits, position) order like (d², position)
+                        // since d² ≥ 0. First within `min(bd, hint)` (few candidates to
+                        // select from), then, if that holds fewer than k, within `bd`.
+                        for (d2, p) in cand_d2.iter_mut().zip(&cand_pts) {
+                            let d = [p[0] - q[0], p[1] - q[1], p[2] - q[2]];
+                            *d2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+                        }
+                        let mut m = 0;
+                        for limit2 in [bd2.min(hint2), bd2] {
+                            m = 0;
+                            for (pos, &d2) in cand_d2.iter().enumerate() {
+                                keys[m] = ((d2.to_bits() as u128) << 32) | pos as u128;
+                                m += (d2 <= limit2) as usize;
+                            }
+                            if m >= k || hint2 >= bd2 {
+                                break;
+                            }
+                        }
+                        if m >= k {
+                            let kept = &mut keys[..m];
+                            if m > k {
+                                kept.select_nth_unstable(k - 1);
+                            }
+                            for &key in &kept[..k] {
+                                let pos = (key as u32) as usize;
+                                nbr_idx.push(cand_idx[pos]);
+                                nbr_pts.push(cand_pts[pos]);
+                            }
+                        } else {
+                            tree.for_k_nearest(q, k, |j| {
+                                nbr_idx.push(j as u32);
+                                nbr_pts.push(points[j]);
+                            });
+                        }
+                        out.push(f(i, &nbr_idx, &nbr_pts));
+                    }
+                }
+                out
+            })
+            .collect();
+        // Results are in cell order; put them back in the cloud's order.
+        let mut slots: Vec<Option<T>> = (0..n).map(|_| None).collect();
+        let mut s = 0;
+        for chunk in chunks {
+            for t in chunk {
+                slots[self.order[s] as usize] = Some(t);
+                s += 1;
+            }
+        }
+        slots
+            .into_iter()
+            .map(|t| t.expect("every point visited once"))
+            .collect()
+    }
+}
+
+/// Cell size of a [`RadiusSearch`], in radii (measured on the bunny scans).
+pub const RADIUS_CELL_FACTOR: f64 = 2.0;
+
+/// Nearest point within a fixed radius `r`, the query of every ICP iteration: a grid of
+/// cells of size `2r`, so that a query meets two cells per axis (a column farther than `r`
+/// is skipped), or a k-d tree when the cloud's box is too large for such cells. Cells of
+/// `r` (three per axis) or less scan fewer points but look up more cells, and cost more.
+pub struct RadiusSearch {
+    r2: f64,
+    grid: Option<CellGrid>,
+    tree: Option<PointIndex>,
+}
+
+impl RadiusSearch {
+    /// Index `points` (not empty) for queries of radius `r` (> 0).
+    pub fn new(points: &[Point], r: f64) -> Self {
+        let grid = CellGrid::new(points, RADIUS_CELL_FACTOR * r);
+        let tree = grid.is_none().then(|| PointIndex::new(points));
+        RadiusSearch {
+            r2: r * r,
+            grid,
+            tree,
+        }
+    }
+
+    /// Index and squared distance of the nearest point within `r` of `q` (inclusive), if
+    /// any; among equally near points the grid returns the lowest index.
+    #[inline]
+    pub fn nearest(&self, q: &Point) -> Option<(usize, f64)> {
+        match (&self.grid, &self.tree) {
+            (Some(g), _) => g.nearest_within(q, self.r2),
+            (None, Some(t)) => t.nearest_within(q, self.r2),
+            (None, None) => unreachable!("RadiusSearch holds a grid or a tree"),
+        }
+    }
+}
+
+/// The median distance to the k-th neighbour over an evenly strided sample of up to 512
+/// points, or `None` for a degenerate cloud (all points equal). A k-NN grid takes cells of
+/// [`KNN_CELL_FACTOR`] times this, so that most points are certified within their 3×3×3
+/// block.
+pub fn median_kth_distance(points: &[Point], tree: &PointIndex, k: usize) -> Option<f64> {
+    let n = points.len();
+    if n == 0 {
+        return None;
+    }
+    let step = n.div_ceil(512);
+    let mut d: Vec<f64> = points
+        .iter()
+        .step_by(step)
+        .map(|p| tree.kth_distance(p, k))
+        .collect();
+    let m = d.len() / 2;
+    d.select_nth_unstable_by(m, f64::total_cmp);
+    let h = d[m] * 1.0;
+    (h.is_finite() && h > 0.0).then_some(h)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::cloud::Point;
+
+    fn cloud(n: usize, seed: u64) -> Vec<Point> {
+        let mut s = seed;
+        let mut r = || {
+            s = s
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (s >> 11) as f64 / (1u64 << 53) as f64
+        };
+        // A noisy sphere plus a few far outliers: dense and sparse regions.
+        let mut pts: Vec<Point> = (0..n)
+            .map(|_| {
+                let (u, v) = (r() * std::f64::consts::TAU, r() * 2.0 - 1.0);
+                let w = (1.0 - v * v).sqrt();
+                let rad = 1.0 + 0.01 * r();
+                [rad * w * u.cos(), rad * w * u.sin(), rad * v]
+            })
+            .collect();
+        pts.extend((0..5).map(|i| [3.0 + i as f64, -2.0, 0.5 * i as f64]));
+        pts
+    }
+
+    #[test]
+    fn knn_matches_the_tree() {
+        let pts = cloud(3000, 7);
+        let tree = PointIndex::new(&pts);
+        let k = 12;
+        let h = median_kth_distance(&pts, &tree, k).unwrap() * KNN_CELL_FACTOR;
+        let grid = CellGrid::new(&pts, h).unwrap();
+        let got = grid.map_knn(&pts, k, h * 0.6, &tree, |i, nb, np| {
+            for (j, p) in nb.iter().zip(np) {
+                assert_eq!(pts[*j as usize], *p);
+            }
+            let mut v: Vec<u32> = nb.to_vec();
+            v.sort_unstable();
+            (i, v)
+        });
+        for (i, (gi, v)) in got.iter().enumerate() {
+            assert_eq!(*gi, i);
+            let mut want: Vec<u32> = tree
+                .k_nearest(&pts[i], k)
+                .into_iter()
+                .map(|j| j as u32)
+                .collect();
+            want.sort_unstable();
+            assert_eq!(v, &want, "point {i}");
+        }
+    }
+
+    #[test]
+    fn nearest_within_matches_the_tree() {
+        let pts = cloud(2000, 3);
+        let tree = PointIndex::new(&pts);
+        let grid = CellGrid::new(&pts, 0.05).unwrap();
+        let queries = cloud(500, 11);
+        for r in [0.001, 0.02, 0.05, 0.12] {
+            for q in &queries {
+                let q = [q[0] * 1.01, q[1], q[2] + 0.003];
+                let a = grid.nearest_within(&q, r * r);
+                let b = tree.nearest_within(&q, r * r);
+                assert_eq!(a.map(|x| x.1), b.map(|x| x.1), "r {r} q {q:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn hashed_and_dense_grids_agree() {
+        let pts = cloud(3000, 21);
+        let tree = PointIndex::new(&pts);
+        let r = median_kth_distance(&pts, &tree, 10).unwrap();
+        let dense = CellGrid::new(&pts, r * KNN_CELL_FACTOR).unwrap();
+        let hashed = CellGrid::with_dense_limit(&pts, r * KNN_CELL_FACTOR, 0).unwrap();
+        assert!(dense.dense.is_some() && hashed.dense.is_none());
+        let knn = |g: &CellGrid| g.map_knn(&pts, 10, 1.5 * r, &tree, |_, nb, _| nb.to_vec());
+        assert_eq!(knn(&dense), knn(&hashed));
+        for q in cloud(300, 4) {
+            let q = [q[0] + 0.01, q[1], q[2]];
+            for rr in [0.5 * r, 2.0 * r] {
+                assert_eq!(
+                    dense.nearest_within(&q, rr * rr),
+                    hashed.nearest_within(&q, rr * rr)
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn radius_search_matches_the_tree() {
+        let pts = cloud(2000, 5);
+        let tree = PointIndex::new(&pts);
+        let queries = cloud(400, 13);
+        for r in [0.003, 0.04, 0.3] {
+            let rs = RadiusSearch::new(&pts, r);
+            assert!(rs.grid.is_some());
+            for q in &queries {
+                let q = [q[0], q[1] * 0.99, q[2] - 0.002];
+                let a = rs.nearest(&q).map(|x| x.1);
+                assert_eq!(a, tree.nearest_within(&q, r * r).map(|x| x.1), "r {r}");
+            }
+        }
+        // A box too large for cells of 2r: the tree answers.
+        let far = vec![[0.0; 3], [1e9, 0.0, 0.0], [1.0, 0.0, 0.0]];
+        let rs = RadiusSearch::new(&far, 1e-3);
+        assert!(rs.grid.is_none());
+        assert_eq!(rs.nearest(&[1.0005, 0.0, 0.0]).map(|x| x.0), Some(2));
+        assert_eq!(rs.nearest(&[1.5, 0.0, 0.0]), None);
+    }
+
+    #[test]
+    fn degenerate_inputs() {
+        assert!(CellGrid::new(&[], 1.0).is_none());
+        assert!(CellGrid::new(&[[0.0; 3]], 0.0).is_none());
+        assert!(CellGrid::new(&[[0.0; 3], [1e9, 0.0, 0.0]], 1e-3).is_none());
+        let same = vec![[1.0, 2.0, 3.0]; 30];
+        let tree = PointIndex::new(&same);
+        assert!(median_kth_distance(&same, &tree, 20).is_none());
+        let g = CellGrid::new(&same, 1.0).unwrap();
+        assert_eq!(g.cells(), 1);
+        let nb = g.map_knn(&same, 20, 0.0, &tree, |_, nb, _| nb.len());
+        assert!(nb.iter().all(|&n| n == 20));
+    }
+}
