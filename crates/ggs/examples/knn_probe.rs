@@ -78,6 +78,14 @@ fn main() {
             "{n} shapes from 20 points each, moments + eigen: {:.1} ms",
             ms(t) * 20.0
         );
+        if let Some(r) = std::env::args().nth(2).and_then(|a| a.parse::<f64>().ok()) {
+            let g = CellGrid::new(pts, 2.0 * r).unwrap();
+            println!(
+                "cells of {}: mean occupancy {:.1}",
+                2.0 * r,
+                g.mean_occupancy()
+            );
+        }
         let t = Instant::now();
         let sh = local_shapes(pts, &idx, 20, 1e-3);
         println!("local shapes: {:.1} ms ({})", ms(t), sh.len());

@@ -7,11 +7,12 @@
 //! definite, whatever the neighbourhood (repeated or collinear points give some orthonormal
 //! basis, never NaN). `planarity = (λ₂ − λ₁)/λ₃` (0 for a degenerate neighbourhood).
 
-use super::grid::{median_kth_distance, CellGrid, KNN_CELL_FACTOR};
+use super::grid::{median_kth_distance, CellGrid, KnnScratch, KNN_CELL_FACTOR};
 use super::neighbors::PointIndex;
 use crate::cloud::Point;
 use nalgebra::{Matrix3, SymmetricEigen, Vector3};
 use rayon::prelude::*;
+use std::sync::OnceLock;
 
 /// Local frame of one point.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -150,13 +151,8 @@ pub fn local_shapes(
     k: usize,
     epsilon: f64,
 ) -> Vec<LocalShape> {
-    let shape = |i: usize, _: &[u32], nbrs: &[Point]| {
-        let mut m = Moments::new(&points[i]);
-        for p in nbrs {
-            m.push(p);
-        }
-        m.shape(epsilon)
-    };
+    let shape =
+        |i: usize, _: &[u32], nbrs: &[Point]| neighbourhood_shape(&points[i], nbrs, epsilon);
     if let Some(r) = median_kth_distance(points, index, k) {
         if let Some(grid) = CellGrid::new(points, r * KNN_CELL_FACTOR) {
             return grid.map_knn(points, k, 1.5 * r, index, shape);
@@ -172,62 +168,111 @@ pub fn local_shapes(
         .collect()
 }
 
-/// Local shapes computed on first use and kept: only points that take part in a
-/// correspondence ever pay for their neighbour search (a low-overlap pair touches a fraction
-/// of each cloud). A shape is a pure function of the cloud and the point, so which thread
-/// computes it first does not matter.
+/// Local shapes computed on first use and kept: only points near a correspondence ever pay
+/// for their neighbour search (a low-overlap pair touches a fraction of each cloud). On the
+/// k-NN grid the shapes of a whole cell are computed together (they share their candidates);
+/// clouds the grid cannot bucket fall back to one tree query per point. A shape is a pure
+/// function of the cloud and the point, so which thread computes it first does not matter.
 pub struct LazyShapes<'a> {
     points: &'a [Point],
     index: &'a PointIndex,
     k: usize,
     epsilon: f64,
-    cache: Vec<std::sync::OnceLock<LocalShape>>,
+    mode: Mode,
+}
+
+enum Mode {
+    Cells {
+        grid: Box<CellGrid>,
+        hint: f64,
+        /// Cell and position in the cell of every point.
+        loc: Vec<(u32, u32)>,
+        cache: Vec<OnceLock<Vec<LocalShape>>>,
+    },
+    Points(Vec<OnceLock<LocalShape>>),
+}
+
+thread_local! {
+    static SCRATCH: std::cell::RefCell<KnnScratch> = std::cell::RefCell::new(KnnScratch::default());
 }
 
 impl<'a> LazyShapes<'a> {
     pub fn new(points: &'a [Point], index: &'a PointIndex, k: usize, epsilon: f64) -> Self {
+        let grid = median_kth_distance(points, index, k)
+            .and_then(|r| CellGrid::new(points, r * KNN_CELL_FACTOR).map(|g| (g, 1.5 * r)));
+        let mode = match grid {
+            Some((grid, hint)) => Mode::Cells {
+                loc: grid.locations(),
+                cache: (0..grid.cells()).map(|_| OnceLock::new()).collect(),
+                grid: Box::new(grid),
+                hint,
+            },
+            None => Mode::Points((0..points.len()).map(|_| OnceLock::new()).collect()),
+        };
         LazyShapes {
             points,
             index,
             k,
             epsilon,
-            cache: (0..points.len())
-                .map(|_| std::sync::OnceLock::new())
-                .collect(),
+            mode,
         }
-    }
-
-    /// All shapes computed now, in parallel ([`local_shapes`]): for estimators that need
-    /// nearly every point's shape, the grid's batched neighbour search is cheaper than one
-    /// tree query per point.
-    pub fn eager(points: &'a [Point], index: &'a PointIndex, k: usize, epsilon: f64) -> Self {
-        let shapes = Self::new(points, index, k, epsilon);
-        for (cell, s) in shapes
-            .cache
-            .iter()
-            .zip(local_shapes(points, index, k, epsilon))
-        {
-            cell.set(s).expect("fresh cache");
-        }
-        shapes
     }
 
     /// The shape of point `i`.
     #[inline]
     pub fn get(&self, i: usize) -> &LocalShape {
-        self.cache[i].get_or_init(|| {
-            let p = &self.points[i];
-            let mut m = Moments::new(p);
-            self.index
-                .for_k_nearest(p, self.k, |j| m.push(&self.points[j]));
-            m.shape(self.epsilon)
-        })
+        let (points, k, epsilon) = (self.points, self.k, self.epsilon);
+        match &self.mode {
+            Mode::Cells {
+                grid,
+                hint,
+                loc,
+                cache,
+            } => {
+                let (cell, off) = loc[i];
+                let shapes = cache[cell as usize].get_or_init(|| {
+                    let mut out = Vec::new();
+                    SCRATCH.with(|scratch| {
+                        grid.cell_knn(
+                            cell as usize,
+                            points,
+                            k,
+                            *hint,
+                            self.index,
+                            &mut scratch.borrow_mut(),
+                            &mut out,
+                            |i, _, nbrs| neighbourhood_shape(&points[i], nbrs, epsilon),
+                        )
+                    });
+                    out
+                });
+                &shapes[off as usize]
+            }
+            Mode::Points(cache) => cache[i].get_or_init(|| {
+                let p = &points[i];
+                let mut m = Moments::new(p);
+                self.index.for_k_nearest(p, k, |j| m.push(&points[j]));
+                m.shape(epsilon)
+            }),
+        }
     }
 
     /// How many shapes were computed so far.
     pub fn computed(&self) -> usize {
-        self.cache.iter().filter(|c| c.get().is_some()).count()
+        match &self.mode {
+            Mode::Cells { cache, .. } => cache.iter().filter_map(|c| c.get()).map(Vec::len).sum(),
+            Mode::Points(cache) => cache.iter().filter(|c| c.get().is_some()).count(),
+        }
     }
+}
+
+/// Shape of the neighbourhood `nbrs` of point `p` (moments anchored at `p`).
+fn neighbourhood_shape(p: &Point, nbrs: &[Point], epsilon: f64) -> LocalShape {
+    let mut m = Moments::new(p);
+    for q in nbrs {
+        m.push(q);
+    }
+    m.shape(epsilon)
 }
 
 #[cfg(test)]

@@ -286,12 +286,148 @@ impl CellGrid {
         best
     }
 
-    /// `f(i, indices, points)` for every point `i` of the cloud, with the original indices and
-    /// the coordinates of its `k` nearest points (itself included; fewer if the cloud is
-    /// smaller), in an order fixed by the data. Returned in the cloud's order. `points` and
-    /// `tree` must hold the points the grid was built from; the tree answers the points the
-    /// grid cannot certify. `hint` is a typical k-th-neighbour distance (a little above the
-    /// median): it only speeds the search up, the answer does not depend on it.
+    /// Mean number of points in the cell of a point (`Σ_cells count² / n`): the occupancy a
+    /// query near the data meets, weighted by where the points are.
+    pub fn mean_occupancy(&self) -> f64 {
+        let sq: f64 = (0..self.cells())
+            .map(|c| (self.range(c).len() as f64).powi(2))
+            .sum();
+        sq / self.order.len() as f64
+    }
+
+    /// Number of points.
+    pub fn len(&self) -> usize {
+        self.order.len()
+    }
+
+    /// Whether the grid holds no point (never: [`Self::new`] refuses an empty cloud).
+    pub fn is_empty(&self) -> bool {
+        self.order.is_empty()
+    }
+
+    /// For every original point index: its cell and its position among the cell's points.
+    pub fn locations(&self) -> Vec<(u32, u32)> {
+        let mut loc = vec![(0u32, 0u32); self.order.len()];
+        for cell in 0..self.cells() {
+            for (off, s) in self.range(cell).enumerate() {
+                loc[self.order[s] as usize] = (cell as u32, off as u32);
+            }
+        }
+        loc
+    }
+
+    /// `f(i, indices, points)` for every point `i` of `cell`, in the cell's order (see
+    /// [`Self::locations`]), with the original indices and the coordinates of its `k`
+    /// nearest points (itself included; fewer if the cloud is smaller), in an order fixed by
+    /// the data. `points` and `tree` must hold the points the grid was built from; the tree
+    /// answers the points the grid cannot certify. `hint` is a typical k-th-neighbour
+    /// distance (a little above the median): it only speeds the search up, the answer does
+    /// not depend on it.
+    #[allow(clippy::too_many_arguments)]
+    pub fn cell_knn<T>(
+        &self,
+        cell: usize,
+        points: &[Point],
+        k: usize,
+        hint: f64,
+        tree: &PointIndex,
+        scratch: &mut KnnScratch,
+        out: &mut Vec<T>,
+        f: impl Fn(usize, &[u32], &[Point]) -> T,
+    ) {
+        let n = self.order.len();
+        debug_assert_eq!(points.len(), n, "cell_knn: the grid's points");
+        let k = k.min(n).max(1);
+        let hint2 = if hint > 0.0 {
+            hint * hint
+        } else {
+            f64::INFINITY
+        };
+        let KnnScratch {
+            cand_pts,
+            cand_idx,
+            keys,
+            cand_d2,
+            nbr_idx,
+            nbr_pts,
+        } = scratch;
+        let c = self.coords[cell];
+        cand_pts.clear();
+        cand_idx.clear();
+        for di in -1..=1i64 {
+            for dj in -1..=1i64 {
+                for dk in -1..=1i64 {
+                    let at = [c[0] as i64 + di, c[1] as i64 + dj, c[2] as i64 + dk];
+                    if let Some(nc) = self.find(at) {
+                        let r = self.range(nc);
+                        cand_pts.extend_from_slice(&self.sorted[r.clone()]);
+                        cand_idx.extend_from_slice(&self.order[r]);
+                    }
+                }
+            }
+        }
+        keys.resize(cand_pts.len(), 0);
+        cand_d2.resize(cand_pts.len(), 0.0);
+        let mut block_lo = [0.0; 3];
+        let mut block_hi = [0.0; 3];
+        for a in 0..3 {
+            block_lo[a] = self.origin[a] + (c[a] as f64 - 1.0) * self.h;
+            block_hi[a] = self.origin[a] + (c[a] as f64 + 2.0) * self.h;
+        }
+        for s in self.range(cell) {
+            let q = &self.sorted[s];
+            let i = self.order[s] as usize;
+            nbr_idx.clear();
+            nbr_pts.clear();
+            // Distance from q to the block's boundary, less a margin for the rounding of the
+            // cell arithmetic: only candidates within it can be certified neighbours.
+            let mut bd = f64::INFINITY;
+            for a in 0..3 {
+                bd = bd.min(q[a] - block_lo[a]).min(block_hi[a] - q[a]);
+            }
+            bd -= 1e-9 * self.h;
+            let bd2 = if bd > 0.0 { bd * bd } else { -1.0 };
+            for (d2, p) in cand_d2.iter_mut().zip(cand_pts.iter()) {
+                let d = [p[0] - q[0], p[1] - q[1], p[2] - q[2]];
+                *d2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+            }
+            // Branch-free filter: every candidate is written, those within the radius are
+            // kept. Keys (d² bits, position) order like (d², position) since d² ≥ 0. First
+            // within `min(bd, hint)` (few candidates to select from), then, if that holds
+            // fewer than k, within `bd`.
+            let mut m = 0;
+            for limit2 in [bd2.min(hint2), bd2] {
+                m = 0;
+                for (pos, &d2) in cand_d2.iter().enumerate() {
+                    keys[m] = ((d2.to_bits() as u128) << 32) | pos as u128;
+                    m += (d2 <= limit2) as usize;
+                }
+                if m >= k || hint2 >= bd2 {
+                    break;
+                }
+            }
+            if m >= k {
+                let kept = &mut keys[..m];
+                if m > k {
+                    kept.select_nth_unstable(k - 1);
+                }
+                for &key in &kept[..k] {
+                    let pos = (key as u32) as usize;
+                    nbr_idx.push(cand_idx[pos]);
+                    nbr_pts.push(cand_pts[pos]);
+                }
+            } else {
+                tree.for_k_nearest(q, k, |j| {
+                    nbr_idx.push(j as u32);
+                    nbr_pts.push(points[j]);
+                });
+            }
+            out.push(f(i, nbr_idx, nbr_pts));
+        }
+    }
+
+    /// [`Self::cell_knn`] for every point of the cloud, in parallel over cells; returned in
+    /// the cloud's order.
     pub fn map_knn<T, F>(
         &self,
         points: &[Point],
@@ -306,98 +442,14 @@ impl CellGrid {
     {
         let n = self.order.len();
         assert_eq!(points.len(), n, "map_knn: the grid's points");
-        let k = k.min(n).max(1);
-        let hint2 = if hint > 0.0 {
-            hint * hint
-        } else {
-            f64::INFINITY
-        };
         let chunks: Vec<Vec<T>> = (0..self.cells())
             .collect::<Vec<_>>()
             .par_chunks(CELLS_PER_TASK)
             .map(|cells| {
                 let mut out = Vec::new();
-                let mut cand_pts: Vec<Point> = Vec::new();
-                let mut cand_idx: Vec<u32> = Vec::new();
-                let mut keys: Vec<u128> = Vec::new();
-                let mut cand_d2: Vec<f64> = Vec::new();
-                let mut nbr_idx: Vec<u32> = Vec::with_capacity(k);
-                let mut nbr_pts: Vec<Point> = Vec::with_capacity(k);
+                let mut scratch = KnnScratch::default();
                 for &cell in cells {
-                    let c = self.coords[cell];
-                    cand_pts.clear();
-                    cand_idx.clear();
-                    for di in -1..=1i64 {
-                        for dj in -1..=1i64 {
-                            for dk in -1..=1i64 {
-                                let at = [c[0] as i64 + di, c[1] as i64 + dj, c[2] as i64 + dk];
-                                if let Some(nc) = self.find(at) {
-                                    let r = self.range(nc);
-                                    cand_pts.extend_from_slice(&self.sorted[r.clone()]);
-                                    cand_idx.extend_from_slice(&self.order[r]);
-                                }
-                            }
-                        }
-                    }
-                    keys.resize(cand_pts.len(), 0);
-                    cand_d2.resize(cand_pts.len(), 0.0);
-                    let mut block_lo = [0.0; 3];
-                    let mut block_hi = [0.0; 3];
-                    for a in 0..3 {
-                        block_lo[a] = self.origin[a] + (c[a] as f64 - 1.0) * self.h;
-                        block_hi[a] = self.origin[a] + (c[a] as f64 + 2.0) * self.h;
-                    }
-                    for s in self.range(cell) {
-                        let q = &self.sorted[s];
-                        let i = self.order[s] as usize;
-                        nbr_idx.clear();
-                        nbr_pts.clear();
-                        // Distance from q to the block's boundary, less a margin for the
-                        // rounding of the cell arithmetic: only candidates within it can be
-                        // certified neighbours.
-                        let mut bd = f64::INFINITY;
-                        for a in 0..3 {
-                            bd = bd.min(q[a] - block_lo[a]).min(block_hi[a] - q[a]);
-                        }
-                        bd -= 1e-9 * self.h;
-                        let bd2 = if bd > 0.0 { bd * bd } else { -1.0 };
-                        // Branch-free filter: every candidate is written, those within the
-                        // radius are kept. Keys (d² bits, position) order like (d², position)
-                        // since d² ≥ 0. First within `min(bd, hint)` (few candidates to
-                        // select from), then, if that holds fewer than k, within `bd`.
-                        for (d2, p) in cand_d2.iter_mut().zip(&cand_pts) {
-                            let d = [p[0] - q[0], p[1] - q[1], p[2] - q[2]];
-                            *d2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
-                        }
-                        let mut m = 0;
-                        for limit2 in [bd2.min(hint2), bd2] {
-                            m = 0;
-                            for (pos, &d2) in cand_d2.iter().enumerate() {
-                                keys[m] = ((d2.to_bits() as u128) << 32) | pos as u128;
-                                m += (d2 <= limit2) as usize;
-                            }
-                            if m >= k || hint2 >= bd2 {
-                                break;
-                            }
-                        }
-                        if m >= k {
-                            let kept = &mut keys[..m];
-                            if m > k {
-                                kept.select_nth_unstable(k - 1);
-                            }
-                            for &key in &kept[..k] {
-                                let pos = (key as u32) as usize;
-                                nbr_idx.push(cand_idx[pos]);
-                                nbr_pts.push(cand_pts[pos]);
-                            }
-                        } else {
-                            tree.for_k_nearest(q, k, |j| {
-                                nbr_idx.push(j as u32);
-                                nbr_pts.push(points[j]);
-                            });
-                        }
-                        out.push(f(i, &nbr_idx, &nbr_pts));
-                    }
+                    self.cell_knn(cell, points, k, hint, tree, &mut scratch, &mut out, &f);
                 }
                 out
             })
@@ -418,24 +470,54 @@ impl CellGrid {
     }
 }
 
+/// Reusable buffers of [`CellGrid::cell_knn`].
+#[derive(Default)]
+pub struct KnnScratch {
+    cand_pts: Vec<Point>,
+    cand_idx: Vec<u32>,
+    keys: Vec<u128>,
+    cand_d2: Vec<f64>,
+    nbr_idx: Vec<u32>,
+    nbr_pts: Vec<Point>,
+}
+
+/// A [`RadiusSearch`] uses the k-d tree when its cells would hold more points than this on
+/// average ([`CellGrid::mean_occupancy`]): a query scans about four cells.
+pub const MAX_RADIUS_OCCUPANCY: f64 = 32.0;
+
 /// Cell size of a [`RadiusSearch`], in radii (measured on the bunny scans).
 pub const RADIUS_CELL_FACTOR: f64 = 2.0;
 
 /// Nearest point within a fixed radius `r`, the query of every ICP iteration: a grid of
 /// cells of size `2r`, so that a query meets two cells per axis (a column farther than `r`
-/// is skipped), or a k-d tree when the cloud's box is too large for such cells. Cells of
-/// `r` (three per axis) or less scan fewer points but look up more cells, and cost more.
-pub struct RadiusSearch {
+/// is skipped), or a k-d tree when the cloud's box is too large for such cells or they
+/// would be crowded. Cells of `r` (three per axis) or less scan fewer points but look up
+/// more cells, and cost more.
+pub struct RadiusSearch<'a> {
     r2: f64,
     grid: Option<CellGrid>,
-    tree: Option<PointIndex>,
+    tree: Option<TreeRef<'a>>,
 }
 
-impl RadiusSearch {
-    /// Index `points` (not empty) for queries of radius `r` (> 0).
-    pub fn new(points: &[Point], r: f64) -> Self {
-        let grid = CellGrid::new(points, RADIUS_CELL_FACTOR * r);
-        let tree = grid.is_none().then(|| PointIndex::new(points));
+enum TreeRef<'a> {
+    Borrowed(&'a PointIndex),
+    Owned(PointIndex),
+}
+
+impl<'a> RadiusSearch<'a> {
+    /// Index `points` (not empty) for queries of radius `r` (> 0). `tree`, when given,
+    /// indexes the same points and serves if the grid does not; otherwise one is built then.
+    pub fn new(points: &[Point], r: f64, tree: Option<&'a PointIndex>) -> Self {
+        // Where the cells would be crowded (clouds much denser in places than the radius,
+        // such as LiDAR scans near the sensor) the tree, which adapts to density, is cheaper.
+        let grid = CellGrid::new(points, RADIUS_CELL_FACTOR * r)
+            .filter(|g| g.mean_occupancy() <= MAX_RADIUS_OCCUPANCY);
+        tracing::debug!(grid = grid.is_some(), "radius search");
+        let tree = match (&grid, tree) {
+            (Some(_), _) => None,
+            (None, Some(t)) => Some(TreeRef::Borrowed(t)),
+            (None, None) => Some(TreeRef::Owned(PointIndex::new(points))),
+        };
         RadiusSearch {
             r2: r * r,
             grid,
@@ -449,7 +531,8 @@ impl RadiusSearch {
     pub fn nearest(&self, q: &Point) -> Option<(usize, f64)> {
         match (&self.grid, &self.tree) {
             (Some(g), _) => g.nearest_within(q, self.r2),
-            (None, Some(t)) => t.nearest_within(q, self.r2),
+            (None, Some(TreeRef::Borrowed(t))) => t.nearest_within(q, self.r2),
+            (None, Some(TreeRef::Owned(t))) => t.nearest_within(q, self.r2),
             (None, None) => unreachable!("RadiusSearch holds a grid or a tree"),
         }
     }
@@ -571,9 +654,10 @@ mod tests {
         let pts = cloud(2000, 5);
         let tree = PointIndex::new(&pts);
         let queries = cloud(400, 13);
-        for r in [0.003, 0.04, 0.3] {
-            let rs = RadiusSearch::new(&pts, r);
-            assert!(rs.grid.is_some());
+        // Small radii on the grid, the largest on the tree (crowded cells).
+        for (r, on_grid) in [(0.003, true), (0.04, true), (0.3, false)] {
+            let rs = RadiusSearch::new(&pts, r, Some(&tree));
+            assert_eq!(rs.grid.is_some(), on_grid, "r {r}");
             for q in &queries {
                 let q = [q[0], q[1] * 0.99, q[2] - 0.002];
                 let a = rs.nearest(&q).map(|x| x.1);
@@ -582,7 +666,7 @@ mod tests {
         }
         // A box too large for cells of 2r: the tree answers.
         let far = vec![[0.0; 3], [1e9, 0.0, 0.0], [1.0, 0.0, 0.0]];
-        let rs = RadiusSearch::new(&far, 1e-3);
+        let rs = RadiusSearch::new(&far, 1e-3, None);
         assert!(rs.grid.is_none());
         assert_eq!(rs.nearest(&[1.0005, 0.0, 0.0]).map(|x| x.0), Some(2));
         assert_eq!(rs.nearest(&[1.5, 0.0, 0.0]), None);

@@ -218,7 +218,8 @@ fn nearest_distance_quantile(
     k: usize,
     q: f64,
 ) -> Option<f64> {
-    let near = grid::median_kth_distance(tgt, tindex, k).map(|r| RadiusSearch::new(tgt, r));
+    let near =
+        grid::median_kth_distance(tgt, tindex, k).map(|r| RadiusSearch::new(tgt, r, Some(tindex)));
     let nearest = |p: &Point, exact: bool| -> f64 {
         let m = t.apply(p);
         match (&near, exact) {
@@ -315,8 +316,7 @@ fn refine_in_pool(
     let src = &source.points;
     let tgt = &target.points;
     // Target normals serve every method: point-to-plane residuals, GICP covariances and the
-    // information matrix of the quality report (the only use for point-to-point, which needs
-    // them at the inliers of the final pose alone, hence lazily). Source shapes for GICP only.
+    // information matrix of the quality report. Source shapes for GICP only. Both lazy.
     let gicp = cfg.method == Method::Gicp;
     let (tindex, sindex) = rayon::join(
         || PointIndex::new(tgt),
@@ -324,14 +324,11 @@ fn refine_in_pool(
     );
     tracing::debug!(ms = t0.elapsed().as_secs_f64() * 1e3, "trees");
     let (tshapes, sshapes) = rayon::join(
-        || match cfg.method {
-            Method::P2p => LazyShapes::new(tgt, &tindex, cfg.neighbors, cfg.epsilon),
-            _ => LazyShapes::eager(tgt, &tindex, cfg.neighbors, cfg.epsilon),
-        },
+        || LazyShapes::new(tgt, &tindex, cfg.neighbors, cfg.epsilon),
         || {
             sindex
                 .as_ref()
-                .map(|ix| LazyShapes::eager(src, ix, cfg.neighbors, cfg.epsilon))
+                .map(|ix| LazyShapes::new(src, ix, cfg.neighbors, cfg.epsilon))
         },
     );
     tracing::debug!(
@@ -369,7 +366,7 @@ fn refine_in_pool(
     }
     let setup_ms = t0.elapsed().as_secs_f64() * 1e3;
     let t1 = Instant::now();
-    let tsearch = RadiusSearch::new(tgt, d_c);
+    let tsearch = RadiusSearch::new(tgt, d_c, Some(&tindex));
     let min_pairs = if cfg.method == Method::P2p { 3 } else { 6 };
     // (fitness, rmse) of the last two iterations: a repeat of either means the loop has
     // settled (a two-cycle, where one correspondence flips in and out, counts too).
@@ -551,7 +548,7 @@ fn quality(
         sq += s;
         h += m;
     }
-    let msearch = RadiusSearch::new(&moved, d_c);
+    let msearch = RadiusSearch::new(&moved, d_c, None);
     let target_in: usize = tgt
         .par_chunks(CHUNK)
         .map(|c| c.iter().filter(|q| msearch.nearest(q).is_some()).count())
