@@ -9,6 +9,17 @@ fn ms(t: Instant) -> f64 {
     t.elapsed().as_secs_f64() * 1e3
 }
 
+/// Fastest of five runs, in ms.
+fn min_of_5(mut f: impl FnMut()) -> f64 {
+    (0..5)
+        .map(|_| {
+            let t = Instant::now();
+            f();
+            ms(t)
+        })
+        .fold(f64::INFINITY, f64::min)
+}
+
 fn main() {
     let path = std::env::args().nth(1).expect("usage: knn_probe CLOUD");
     let c = ggs::io::read_cloud(path.as_ref(), None).unwrap().cloud;
@@ -21,17 +32,13 @@ fn main() {
         let t = Instant::now();
         let idx = PointIndex::new(pts);
         println!("kd-tree build: {:.1} ms", ms(t));
-        let best = (0..5)
-            .map(|_| {
-                let t = Instant::now();
-                let mut s = 0;
-                for p in pts {
-                    idx.for_k_nearest(p, 20, |j| s += j);
-                }
-                assert!(s > 0);
-                ms(t)
-            })
-            .fold(f64::INFINITY, f64::min);
+        let best = min_of_5(|| {
+            let mut s = 0;
+            for p in pts {
+                idx.for_k_nearest(p, 20, |j| s += j);
+            }
+            assert!(s > 0);
+        });
         println!("kd-tree 20-NN: {best:.1} ms (min of 5)");
         let t = Instant::now();
         let s: usize = pts
@@ -46,14 +53,10 @@ fn main() {
         println!("grid build: {:.1} ms", ms(t));
         for factor in [0.8, 1.0, 1.2, 1.4, 1.7] {
             let g = CellGrid::new(pts, h * factor).unwrap();
-            let best = (0..5)
-                .map(|_| {
-                    let t = Instant::now();
-                    let v = g.map_knn(pts, 20, 1.2 * r, &idx, |_, nb, _| nb.len());
-                    assert_eq!(v.len(), pts.len());
-                    ms(t)
-                })
-                .fold(f64::INFINITY, f64::min);
+            let best = min_of_5(|| {
+                let v = g.map_knn(pts, 20, 1.5 * r, &idx, |_, nb, _| nb.len());
+                assert_eq!(v.len(), pts.len());
+            });
             println!("grid 20-NN, cell × {factor}: {best:.1} ms (min of 5)");
         }
         let t = Instant::now();

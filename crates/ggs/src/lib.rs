@@ -37,6 +37,9 @@ pub mod threads;
 pub mod transform;
 pub mod voxel;
 
+#[cfg(test)]
+pub(crate) mod test_rng;
+
 pub use cloud::{Cloud, Point};
 pub use error::{GgsError, Result};
 pub use transform::Rigid;

@@ -144,13 +144,7 @@ mod tests {
     use crate::rotations::RotationSet;
 
     fn lcg_cloud(n: usize, seed: u64) -> Cloud {
-        let mut s = seed;
-        let mut next = || {
-            s = s
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (s >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut next = crate::test_rng::uniform(seed);
         Cloud::new(
             (0..n)
                 .map(|_| [next() * 3.0 - 1.0, next() * 0.5, next() * 2.0 + 7.0])

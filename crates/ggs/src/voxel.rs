@@ -110,7 +110,7 @@ mod tests {
 
     #[test]
     fn fast_cell_equals_division() {
-        let mut state = 12345u64;
+        let mut uniform = crate::test_rng::uniform(12345);
         for &s in &[
             0.005,
             0.006,
@@ -125,10 +125,7 @@ mod tests {
         ] {
             let inv = 1.0 / s;
             for k in 0..200_000u64 {
-                state = state
-                    .wrapping_mul(6364136223846793005)
-                    .wrapping_add(1442695040888963407);
-                let r = (state >> 11) as f64 / (1u64 << 53) as f64;
+                let r = uniform();
                 // Random values, and values on and next to exact multiples of s (up to 1e7
                 // cells, the largest grid axis allowed).
                 let base = ((k * 7919) % 10_000_000) as f64 * s;

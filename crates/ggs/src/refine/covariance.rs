@@ -323,13 +323,8 @@ mod tests {
 
     #[test]
     fn closed_form_normal_matches_the_iterative_solver() {
-        let mut seed = 99u64;
-        let mut r = || {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-        };
+        let mut uniform = crate::test_rng::uniform(99);
+        let mut r = || uniform() - 0.5;
         let mut checked = 0;
         for _ in 0..2000 {
             // Random rotation of a random diagonal (spreads from isotropic to flat).

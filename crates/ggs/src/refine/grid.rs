@@ -565,13 +565,7 @@ mod tests {
     use crate::cloud::Point;
 
     fn cloud(n: usize, seed: u64) -> Vec<Point> {
-        let mut s = seed;
-        let mut r = || {
-            s = s
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (s >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut r = crate::test_rng::uniform(seed);
         // A noisy sphere plus a few far outliers: dense and sparse regions.
         let mut pts: Vec<Point> = (0..n)
             .map(|_| {
