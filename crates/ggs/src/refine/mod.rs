@@ -331,10 +331,7 @@ fn refine_in_pool(
                 .map(|ix| LazyShapes::new(src, ix, cfg.neighbors, cfg.epsilon))
         },
     );
-    tracing::debug!(
-        ms = t0.elapsed().as_secs_f64() * 1e3,
-        "trees and local shapes"
-    );
+    tracing::debug!(ms = t0.elapsed().as_secs_f64() * 1e3, "shape grids");
     let centroid = source.centroid().expect("non-empty");
     let radius = src
         .iter()
