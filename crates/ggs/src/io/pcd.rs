@@ -125,6 +125,15 @@ pub fn parse_pcd(path: &Path, bytes: &[u8]) -> Result<Vec<Point>> {
                 ),
             ));
         }
+        if f.count == 0 {
+            return Err(GgsError::in_file(
+                path,
+                format!(
+                    "field '{}': COUNT 0 (every field holds at least one value)",
+                    f.name
+                ),
+            ));
+        }
     }
     let n = match (points, width) {
         (Some(p), _) => p,
@@ -261,16 +270,24 @@ fn read_binary(
             ),
         ));
     }
-    let mut out = Vec::with_capacity(n);
-    for rec in data[..need].chunks_exact(stride.max(1)).take(n) {
-        let mut p = [0.0; 3];
-        for d in 0..3 {
-            let f = &fields[xyz[d]];
-            p[d] = decode(f, &rec[field_off[xyz[d]]..]);
-        }
-        out.push(p);
-    }
-    Ok(out)
+    // Row layout: point i's record starts at i·stride.
+    Ok(gather_xyz(&data[..need], fields, xyz, n, |d, i| {
+        field_off[xyz[d]] + i * stride
+    }))
+}
+
+/// Decode x, y, z of `n` points from `bytes`, where `at(d, i)` is the byte position of
+/// coordinate `d` (0, 1, 2) of point `i` (in bounds: the callers checked the length).
+fn gather_xyz(
+    bytes: &[u8],
+    fields: &[Field],
+    xyz: &[usize],
+    n: usize,
+    at: impl Fn(usize, usize) -> usize,
+) -> Vec<Point> {
+    (0..n)
+        .map(|i| std::array::from_fn(|d| decode(&fields[xyz[d]], &bytes[at(d, i)..])))
+        .collect()
 }
 
 fn read_compressed(
@@ -319,17 +336,10 @@ fn read_compressed(
             ),
         ));
     }
-    let mut out = Vec::with_capacity(n);
-    for i in 0..n {
-        let mut p = [0.0; 3];
-        for d in 0..3 {
-            let f = &fields[xyz[d]];
-            let at = field_off[xyz[d]] + i * f.size * f.count;
-            p[d] = decode(f, &raw[at..]);
-        }
-        out.push(p);
-    }
-    Ok(out)
+    Ok(gather_xyz(&raw, fields, xyz, n, |d, i| {
+        let f = &fields[xyz[d]];
+        field_off[xyz[d]] + i * f.size * f.count
+    }))
 }
 
 /// LZF decompression (the format of liblzf, used by PCL's `binary_compressed`).
@@ -468,6 +478,13 @@ mod tests {
         .unwrap_err()
         .to_string();
         assert!(e.contains("no field 'z'"), "{e}");
+        let e = parse_pcd(
+            p,
+            b"FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 0\nPOINTS 1\nDATA binary\n\0\0\0\0\0\0\0\0",
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("field 'z': COUNT 0"), "{e}");
         let e = parse_pcd(p, b"FIELDS x y z\nSIZE 4 4 4\nTYPE F F Q\n")
             .unwrap_err()
             .to_string();
