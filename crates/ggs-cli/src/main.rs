@@ -14,6 +14,7 @@ macro_rules! outln {
     };
 }
 
+mod bench;
 mod refine_args;
 mod register;
 
@@ -36,6 +37,8 @@ enum Command {
     Refine(Box<register::RefineArgs>),
     /// Write a rotation set to a .npy file of shape [N, 3, 3] (or print its size).
     Rotations(register::RotationsArgs),
+    /// Run a benchmark protocol (3dmatch, kitti, eth, fpv1) or a manifest of pairs.
+    Bench(Box<bench::BenchArgs>),
 }
 
 /// Write `s` to stdout. Returns an error only for a real failure; a broken pipe marks stdout
@@ -73,6 +76,7 @@ fn main() -> ExitCode {
         Command::Register(a) => register::run(*a),
         Command::Refine(a) => register::run_refine(*a),
         Command::Rotations(a) => register::run_rotations(a),
+        Command::Bench(a) => bench::run(*a),
     };
     match outcome {
         Ok(()) => ExitCode::SUCCESS,

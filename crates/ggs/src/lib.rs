@@ -22,6 +22,7 @@
 // Grid and matrix code indexes several arrays with one axis variable; iterators would hide it.
 #![allow(clippy::needless_range_loop)]
 
+pub mod benchmark;
 pub mod cloud;
 pub mod correlate;
 pub mod error;

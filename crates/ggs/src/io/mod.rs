@@ -4,6 +4,7 @@
 //! [`Format`] skips the extension. Every reader returns a typed [`GgsError`] that names the
 //! file and the line or byte offset of the problem.
 
+pub mod kitti;
 pub mod npy;
 pub mod pcd;
 pub mod ply;
@@ -22,6 +23,8 @@ pub enum Format {
     /// Delimited text: `.xyz`, `.txt`, `.csv`, `.pts`.
     Text,
     Npy,
+    /// KITTI velodyne `.bin` (float32 x y z reflectance).
+    KittiBin,
 }
 
 impl Format {
@@ -32,6 +35,7 @@ impl Format {
             "pcd" => Format::Pcd,
             "xyz" | "txt" | "csv" | "pts" | "text" => Format::Text,
             "npy" => Format::Npy,
+            "bin" | "kitti" => Format::KittiBin,
             _ => return None,
         })
     }
@@ -88,6 +92,7 @@ pub fn read_cloud(path: &Path, format: Option<Format>) -> Result<LoadedCloud> {
     let points = match fmt {
         Format::Ply => ply::parse_ply(path, &bytes)?,
         Format::Pcd => pcd::parse_pcd(path, &bytes)?,
+        Format::KittiBin => kitti::parse_kitti_bin(path, &bytes)?,
         Format::Text => xyz::parse_xyz(path, &bytes)?,
         Format::Npy => {
             let a = npy::parse_npy(path, &bytes)?;

@@ -1,0 +1,152 @@
+//! `ggs bench PROTOCOL`: run a published benchmark protocol or a manifest of pairs.
+
+use crate::refine_args::{parse_method, RefineOptions};
+use anyhow::{bail, Context, Result};
+use clap::Args;
+use ggs::benchmark::{self, missing_files, Protocol, RunConfig};
+use ggs::rotations::RotationSet;
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use std::io::IsTerminal;
+use std::path::PathBuf;
+
+#[derive(Args)]
+pub struct BenchArgs {
+    /// 3dmatch, kitti, eth, fpv1, or manifest (then give the manifest file).
+    pub protocol: String,
+    /// The manifest (`pairs.tsv` format) for `manifest`.
+    pub manifest: Option<PathBuf>,
+    /// Directory with the protocol's point clouds (not for `manifest`).
+    #[arg(long, value_name = "DIR")]
+    pub data: Option<PathBuf>,
+    /// Run directory: pairs.csv (resumable), results.json, summary.md, recall.svg.
+    /// Default: ggs-bench-PROTOCOL.
+    #[arg(long, value_name = "RUN_DIR")]
+    pub out: Option<PathBuf>,
+    /// Only the first N pairs (after --pairs).
+    #[arg(long, value_name = "N")]
+    pub limit: Option<usize>,
+    /// Only pairs whose id contains one of these comma-separated substrings.
+    #[arg(long, value_name = "A,B")]
+    pub pairs: Option<String>,
+    /// Voxel size (default: the protocol's, or each manifest pair's own).
+    #[arg(long)]
+    pub voxel: Option<f64>,
+    /// Rotation set (default: the protocol's).
+    #[arg(long)]
+    pub rotations: Option<String>,
+    /// Refinement: gicp (default), p2plane, p2p, none.
+    #[arg(long, default_value = "gicp")]
+    pub refine: String,
+    #[command(flatten)]
+    pub refine_options: RefineOptions,
+    /// Success threshold on RRE, degrees (default: the protocol's).
+    #[arg(long, value_name = "DEG")]
+    pub max_rre: Option<f64>,
+    /// Success threshold on RTE, cloud units (default: the protocol's; 3 voxels for a manifest).
+    #[arg(long, value_name = "D")]
+    pub max_rte: Option<f64>,
+    /// Worker threads per pair (0: all cores).
+    #[arg(long, default_value_t = 0)]
+    pub threads: usize,
+    /// Print the summary as JSON instead of Markdown.
+    #[arg(long)]
+    pub json: bool,
+    /// No progress bar.
+    #[arg(short, long)]
+    pub quiet: bool,
+}
+
+pub fn run(args: BenchArgs) -> Result<()> {
+    let protocol = Protocol::from_name(&args.protocol, args.manifest.as_deref())?;
+    if matches!(protocol, Protocol::Manifest(_)) {
+        if args.data.is_some() {
+            bail!("--data is not used with a manifest: its paths are relative to the manifest");
+        }
+    } else if args.manifest.is_some() {
+        bail!("only 'manifest' takes a file argument; give the clouds' directory with --data");
+    }
+    let data = match (&protocol, &args.data) {
+        (Protocol::Manifest(_), _) => PathBuf::new(),
+        (_, Some(d)) if d.is_dir() => d.clone(),
+        (_, Some(d)) => bail!("--data {}: not a directory", d.display()),
+        (p, None) => bail!("{} needs --data DIR with its point clouds", p.name()),
+    };
+    let defaults = protocol.defaults();
+    let mut pairs = protocol.pairs(&data)?;
+    if let Some(filter) = &args.pairs {
+        let keys: Vec<&str> = filter.split(',').filter(|k| !k.is_empty()).collect();
+        pairs.retain(|p| keys.iter().any(|k| p.id.contains(k)));
+    }
+    if let Some(n) = args.limit {
+        pairs.truncate(n);
+    }
+    if pairs.is_empty() {
+        bail!("no pair selected (check --pairs and --limit)");
+    }
+    let (count, first) = missing_files(&pairs, 5);
+    if count > 0 {
+        let list: Vec<String> = first.iter().map(|p| format!("  {}", p.display())).collect();
+        bail!(
+            "{count} file(s) the {} pairs need are missing; the first:\n{}",
+            protocol.name(),
+            list.join("\n")
+        );
+    }
+    let refine = match parse_method(&args.refine)? {
+        Some(m) => Some(args.refine_options.config(m, args.threads)?),
+        None => None,
+    };
+    let rotations_name = args.rotations.as_deref().unwrap_or(defaults.rotations);
+    let cfg = RunConfig {
+        voxel: args.voxel,
+        rotations: RotationSet::named(rotations_name)?,
+        refine,
+        threads: args.threads,
+        max_rre_deg: args.max_rre.unwrap_or(defaults.max_rre_deg),
+        max_rte: args.max_rte.or(defaults.max_rte),
+        default_voxel: defaults.voxel,
+    };
+    let out = args
+        .out
+        .clone()
+        .unwrap_or_else(|| PathBuf::from(format!("ggs-bench-{}", protocol.name())));
+    let pb = if args.quiet || !std::io::stderr().is_terminal() {
+        ProgressBar::hidden()
+    } else {
+        let pb =
+            ProgressBar::with_draw_target(Some(pairs.len() as u64), ProgressDrawTarget::stderr());
+        pb.set_style(
+            ProgressStyle::with_template("{bar:40} {pos}/{len} pairs, ETA {eta} {msg}")
+                .expect("valid template"),
+        );
+        pb
+    };
+    let mut successes = 0;
+    let outcome = benchmark::run(
+        protocol.name(),
+        &pairs,
+        &cfg,
+        !matches!(protocol, Protocol::Manifest(_)),
+        &out,
+        |done, _, row| {
+            successes += row.success as usize;
+            pb.set_position(done as u64);
+            pb.set_message(format!("{successes}/{done} solved, last {}", row.id));
+        },
+    )
+    .with_context(|| format!("benchmark run in {}", out.display()))?;
+    pb.finish_and_clear();
+    if args.json {
+        outln!("{}", serde_json::to_string_pretty(&outcome.summary)?);
+    } else {
+        let metres = !matches!(protocol, Protocol::Manifest(_));
+        out!("{}", outcome.summary.markdown(&outcome.rows, metres));
+        outln!(
+            "\n{} pairs ({} from an earlier run); results in {}",
+            outcome.rows.len(),
+            outcome.resumed,
+            out.display()
+        );
+    }
+    Ok(())
+}

@@ -1,0 +1,138 @@
+//! `ggs bench` end to end, on a manifest of the bundled PCL bunny pair.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn ggs(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_ggs"))
+        .args(args)
+        .output()
+        .expect("run ggs")
+}
+
+fn tmp(tag: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("ggs-bench-cli-{tag}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+/// A manifest with the bundled pair both ways (absolute paths).
+fn manifest(dir: &Path) -> PathBuf {
+    let data = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../../tests/data")
+        .canonicalize()
+        .unwrap();
+    let t = "0.825336 0 -0.564642 0.037267 0 1 0 0 0.564642 0 0.825336 0.038325 0 0 0 1";
+    let ti = "0.825336 0 0.564642 -0.052397 0 1 0 0 -0.564642 0 0.825336 -0.010588 0 0 0 1";
+    let (b0, b4) = (data.join("bun0.pcd"), data.join("bun4.pcd"));
+    let text = format!(
+        "# name\tsource\ttarget\tT\tquality\tvoxel\n\
+         fwd\t{}\t{}\t{t}\texact\t0.006\n\
+         back\t{}\t{}\t{ti}\texact\t0.006\n",
+        b0.display(),
+        b4.display(),
+        b4.display(),
+        b0.display()
+    );
+    let p = dir.join("pairs.tsv");
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+#[test]
+fn manifest_run_writes_its_files_and_resumes() {
+    let dir = tmp("manifest");
+    let m = manifest(&dir);
+    let out = dir.join("run");
+    let o = ggs(&[
+        "bench",
+        "manifest",
+        s(&m),
+        "--out",
+        s(&out),
+        "--threads",
+        "2",
+    ]);
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(stdout.contains("| manifest | 2 | 100.00 |"), "{stdout}");
+    assert!(stdout.contains("RRE < 10° and RTE < 0.018"), "{stdout}");
+    for f in ["pairs.csv", "results.json", "summary.md", "recall.svg"] {
+        assert!(out.join(f).is_file(), "{f}");
+    }
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("results.json")).unwrap()).unwrap();
+    assert_eq!(json["summary"]["successes"], 2);
+    assert_eq!(json["pairs"][1]["id"], "back");
+    // Run again: nothing new to do.
+    let o = ggs(&["bench", "manifest", s(&m), "--out", s(&out), "--json", "-q"]);
+    assert!(o.status.success());
+    let summary: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(summary["recall"], 1.0);
+    // --pairs selects by id.
+    let o = ggs(&[
+        "bench",
+        "manifest",
+        s(&m),
+        "--out",
+        s(&out),
+        "--pairs",
+        "back",
+    ]);
+    assert!(String::from_utf8_lossy(&o.stdout).contains("1 pairs (1 from an earlier run)"));
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+fn assert_fails(args: &[&str], needle: &str) {
+    let o = ggs(args);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
+    assert!(
+        err.contains(needle),
+        "{args:?}: expected '{needle}' in: {err}"
+    );
+}
+
+#[test]
+fn bench_errors_come_before_any_work() {
+    let dir = tmp("errors");
+    let d = s(&dir);
+    assert_fails(&["bench", "3dmatch"], "3dmatch needs --data DIR");
+    assert_fails(
+        &["bench", "kitti", "--data", d],
+        "file(s) the kitti pairs need are missing",
+    );
+    assert_fails(&["bench", "kitti", "--data", d], "08/velodyne/000000.bin");
+    assert_fails(
+        &["bench", "eth", "--data", d],
+        "ETH needs each scene's gt.log; 4 missing",
+    );
+    assert_fails(&["bench", "nope", "--data", d], "unknown protocol 'nope'");
+    assert_fails(
+        &["bench", "manifest"],
+        "manifest needs the manifest file's path",
+    );
+    let m = manifest(&dir);
+    assert_fails(
+        &["bench", "manifest", s(&m), "--data", d],
+        "--data is not used",
+    );
+    assert_fails(
+        &["bench", "manifest", s(&m), "--pairs", "zzz"],
+        "no pair selected",
+    );
+    // A results file from something else is never overwritten.
+    let out = dir.join("foreign");
+    std::fs::create_dir_all(&out).unwrap();
+    std::fs::write(out.join("pairs.csv"), "a,b\n").unwrap();
+    assert_fails(
+        &["bench", "manifest", s(&m), "--out", s(&out)],
+        "not a ggs results file",
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}

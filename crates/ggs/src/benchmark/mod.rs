@@ -1,0 +1,252 @@
+//! Benchmark runners: the published protocols and generic manifests, run pair by pair into a
+//! resumable CSV, with a summary in the layout of the papers' tables (SPEC §7).
+//!
+//! - [`protocol`]: pair lists, ground truth and default parameters of each protocol;
+//! - [`row`]: one pair's result ([`PairRow`]) and the resumable CSV file;
+//! - [`report`]: recall, mean errors, the Markdown table and the recall curves (SVG).
+
+pub mod protocol;
+pub mod report;
+pub mod row;
+
+use crate::cloud::Cloud;
+use crate::error::{GgsError, Result};
+use crate::metrics::{is_success, rre, rte};
+use crate::refine::{refine, RefineConfig};
+use crate::rotations::RotationSet;
+use crate::search::{coarse_register, SearchConfig};
+use crate::transform::Rigid;
+pub use protocol::Protocol;
+pub use row::PairRow;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// Where a benchmark cloud comes from.
+#[derive(Debug, Clone, PartialEq)]
+pub enum CloudRef {
+    /// A whole point-cloud file.
+    File(PathBuf),
+    /// The points of `cloud` listed in `indices` (a text file of 0-based point indices, any
+    /// whitespace), moved by `transform` if given: FAUST-partial views.
+    Visible {
+        cloud: PathBuf,
+        indices: PathBuf,
+        transform: Option<Rigid>,
+    },
+}
+
+impl CloudRef {
+    /// The files this cloud needs.
+    pub fn files(&self) -> Vec<&Path> {
+        match self {
+            CloudRef::File(p) => vec![p],
+            CloudRef::Visible { cloud, indices, .. } => vec![cloud, indices],
+        }
+    }
+
+    /// Read the cloud.
+    pub fn load(&self) -> Result<Cloud> {
+        match self {
+            CloudRef::File(p) => Ok(crate::io::read_cloud(p, None)?.cloud),
+            CloudRef::Visible {
+                cloud,
+                indices,
+                transform,
+            } => {
+                let all = crate::io::read_cloud(cloud, None)?.cloud;
+                let idx = read_indices(indices, all.len())?;
+                let pts = Cloud::new(idx.iter().map(|&i| all.points[i]).collect());
+                Ok(match transform {
+                    Some(t) => pts.transformed(t),
+                    None => pts,
+                })
+            }
+        }
+    }
+}
+
+/// Read a whitespace-separated list of point indices, each below `n`.
+pub fn read_indices(path: &Path, n: usize) -> Result<Vec<usize>> {
+    let text = std::fs::read_to_string(path).map_err(|e| GgsError::io(path, e))?;
+    let mut out = Vec::new();
+    for (k, line) in text.lines().enumerate() {
+        for tok in line.split_whitespace() {
+            let i: usize = tok.parse().map_err(|_| {
+                GgsError::at_line(path, k + 1, format!("'{tok}' is not a point index"))
+            })?;
+            if i >= n {
+                return Err(GgsError::at_line(
+                    path,
+                    k + 1,
+                    format!("index {i} is out of range: the cloud has {n} points"),
+                ));
+            }
+            out.push(i);
+        }
+    }
+    if out.is_empty() {
+        return Err(GgsError::in_file(path, "no point index"));
+    }
+    Ok(out)
+}
+
+/// One pair of a benchmark.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BenchPair {
+    /// Unique within the protocol, e.g. `7-scenes-redkitchen/0_1`.
+    pub id: String,
+    pub source: CloudRef,
+    pub target: CloudRef,
+    /// Maps the source into the target's frame.
+    pub ground_truth: Rigid,
+    /// The pair's own voxel size (manifests), used unless one is forced.
+    pub voxel: Option<f64>,
+    /// The protocol's overlap of the pair (fraction), where it has one.
+    pub overlap: Option<f64>,
+}
+
+/// The files that `pairs` need and that do not exist: `(count, first few)` in pair order,
+/// each listed once.
+pub fn missing_files(pairs: &[BenchPair], first: usize) -> (usize, Vec<PathBuf>) {
+    let mut seen = std::collections::HashSet::new();
+    let mut count = 0;
+    let mut listed = Vec::new();
+    for p in pairs {
+        for f in p.source.files().into_iter().chain(p.target.files()) {
+            if seen.insert(f.to_path_buf()) && !f.is_file() {
+                count += 1;
+                if listed.len() < first {
+                    listed.push(f.to_path_buf());
+                }
+            }
+        }
+    }
+    (count, listed)
+}
+
+/// How to run each pair.
+#[derive(Debug, Clone)]
+pub struct RunConfig {
+    /// Forced voxel size; otherwise the pair's, otherwise the protocol's.
+    pub voxel: Option<f64>,
+    pub rotations: RotationSet,
+    /// `None`: coarse search only.
+    pub refine: Option<RefineConfig>,
+    pub threads: usize,
+    pub max_rre_deg: f64,
+    /// `None`: 3 × the pair's voxel.
+    pub max_rte: Option<f64>,
+    /// Used when neither `voxel` nor the pair gives one.
+    pub default_voxel: Option<f64>,
+}
+
+/// Register one pair and score it. Errors reading or registering the pair are recorded in
+/// the row (a failed pair counts as unsuccessful), not returned.
+pub fn run_pair(pair: &BenchPair, cfg: &RunConfig) -> PairRow {
+    let t0 = Instant::now();
+    let mut row = PairRow::new(&pair.id, pair.overlap);
+    let voxel = cfg.voxel.or(pair.voxel).or(cfg.default_voxel);
+    let result = (|| -> Result<()> {
+        let voxel = voxel.ok_or_else(|| GgsError::param("voxel", "no voxel size for this pair"))?;
+        row.voxel = voxel;
+        row.max_rte = cfg.max_rte.unwrap_or(3.0 * voxel);
+        row.max_rre_deg = cfg.max_rre_deg;
+        let (source, target) = (pair.source.load()?, pair.target.load()?);
+        row.source_points = source.len();
+        row.target_points = target.len();
+        row.read_ms = t0.elapsed().as_secs_f64() * 1e3;
+        let mut search = SearchConfig::with_voxel(voxel);
+        search.threads = cfg.threads;
+        let coarse = coarse_register(&source, &target, &cfg.rotations, &search)?;
+        row.coarse_ms = coarse.timings.total_ms;
+        row.score = coarse.score;
+        row.ambiguity = coarse.ambiguity;
+        row.coarse_rre = rre(&coarse.transform, &pair.ground_truth);
+        row.coarse_rte = rte(&coarse.transform, &pair.ground_truth);
+        let mut t = coarse.transform;
+        if let Some(rc) = &cfg.refine {
+            let mut rc = *rc;
+            rc.threads = cfg.threads;
+            let r = refine(&source, &target, &coarse.transform, &rc)?;
+            row.refine_ms = r.total_ms;
+            row.fitness_source = Some(r.report.fitness_source);
+            row.fitness_target = Some(r.report.fitness_target);
+            row.inlier_rmse = Some(r.report.inlier_rmse);
+            row.iterations = Some(r.report.iterations);
+            row.converged = Some(r.report.converged);
+            row.degenerate = Some(r.report.degenerate);
+            t = r.transform;
+        }
+        row.rre = rre(&t, &pair.ground_truth);
+        row.rte = rte(&t, &pair.ground_truth);
+        row.success = is_success(row.rre, row.rte, row.max_rre_deg, row.max_rte);
+        row.transform = t.to_rows().concat();
+        Ok(())
+    })();
+    if let Err(e) = result {
+        row.error = Some(e.to_string());
+        row.success = false;
+    }
+    row.total_ms = t0.elapsed().as_secs_f64() * 1e3;
+    row
+}
+
+/// What a finished run wrote and measured.
+#[derive(Debug, Clone)]
+pub struct RunOutcome {
+    /// Rows of the selected pairs, in their order.
+    pub rows: Vec<PairRow>,
+    pub summary: report::Summary,
+    /// Pairs taken from an earlier run's CSV instead of being run again.
+    pub resumed: usize,
+}
+
+/// Run `pairs` into `out` (created if needed): `pairs.csv` (one line per pair, appended as
+/// each finishes), then `results.json` (summary and rows), `summary.md` and `recall.svg`,
+/// each written atomically. Pairs already in `out/pairs.csv` are not run again.
+/// `progress(done, total, row)` is called after every pair, resumed ones included.
+pub fn run(
+    name: &str,
+    pairs: &[BenchPair],
+    cfg: &RunConfig,
+    metres: bool,
+    out: &Path,
+    mut progress: impl FnMut(usize, usize, &PairRow),
+) -> Result<RunOutcome> {
+    std::fs::create_dir_all(out).map_err(|e| GgsError::io(out, e))?;
+    let (mut csv, earlier) = row::ResultsCsv::open(&out.join("pairs.csv"))?;
+    let mut done: std::collections::HashMap<String, PairRow> =
+        earlier.into_iter().map(|r| (r.id.clone(), r)).collect();
+    let mut rows = Vec::with_capacity(pairs.len());
+    let mut resumed = 0;
+    for (k, pair) in pairs.iter().enumerate() {
+        let row = match done.remove(&pair.id) {
+            Some(r) => {
+                resumed += 1;
+                r
+            }
+            None => {
+                let r = run_pair(pair, cfg);
+                csv.append(&r)?;
+                r
+            }
+        };
+        progress(k + 1, pairs.len(), &row);
+        rows.push(row);
+    }
+    let summary = report::Summary::of(name, &rows);
+    let json = serde_json::json!({ "summary": &summary, "pairs": &rows });
+    let write =
+        |file: &str, text: String| crate::io::write_atomic(&out.join(file), text.as_bytes());
+    write(
+        "results.json",
+        serde_json::to_string_pretty(&json).expect("rows serialize") + "\n",
+    )?;
+    write("summary.md", summary.markdown(&rows, metres))?;
+    write("recall.svg", report::recall_curves_svg(name, &rows))?;
+    Ok(RunOutcome {
+        rows,
+        summary,
+        resumed,
+    })
+}

@@ -1,0 +1,59 @@
+//! KITTI velodyne scans (`.bin`): little-endian float32 records `x y z reflectance`, 16
+//! bytes per point, no header.
+
+use crate::cloud::Point;
+use crate::error::{GgsError, Result};
+use std::path::Path;
+
+/// Bytes per point.
+pub const RECORD: usize = 16;
+
+/// Parse a KITTI `.bin` scan (reflectance dropped).
+pub fn parse_kitti_bin(path: &Path, bytes: &[u8]) -> Result<Vec<Point>> {
+    if bytes.len() % RECORD != 0 {
+        return Err(GgsError::at_byte(
+            path,
+            (bytes.len() - bytes.len() % RECORD) as u64,
+            format!(
+                "KITTI .bin holds 16-byte records (float32 x y z reflectance); {} bytes leave {} over",
+                bytes.len(),
+                bytes.len() % RECORD
+            ),
+        ));
+    }
+    let f = |b: &[u8]| f32::from_le_bytes([b[0], b[1], b[2], b[3]]) as f64;
+    Ok(bytes
+        .chunks_exact(RECORD)
+        .map(|r| [f(&r[0..4]), f(&r[4..8]), f(&r[8..12])])
+        .collect())
+}
+
+/// Write a KITTI `.bin` scan (reflectance 0) atomically; for tests and fixtures.
+pub fn write_kitti_bin(path: &Path, points: &[Point]) -> Result<()> {
+    let mut bytes = Vec::with_capacity(points.len() * RECORD);
+    for p in points {
+        for v in [p[0], p[1], p[2], 0.0] {
+            bytes.extend_from_slice(&(v as f32).to_le_bytes());
+        }
+    }
+    super::write_atomic(path, &bytes)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn round_trip_and_truncation() {
+        let dir = std::env::temp_dir().join(format!("ggs-kitti-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let p = dir.join("000001.bin");
+        let pts = vec![[1.5, -2.0, 0.25], [100.0, 3.0, -1.75]];
+        write_kitti_bin(&p, &pts).unwrap();
+        let bytes = std::fs::read(&p).unwrap();
+        assert_eq!(parse_kitti_bin(&p, &bytes).unwrap(), pts);
+        let e = parse_kitti_bin(&p, &bytes[..20]).unwrap_err().to_string();
+        assert!(e.contains("byte 16") && e.contains("4 over"), "{e}");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}

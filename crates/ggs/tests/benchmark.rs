@@ -1,0 +1,248 @@
+//! Benchmark protocols and the resumable runner.
+
+mod common;
+
+use ggs::benchmark::protocol::{eth_selection, parse_gt_log, Protocol};
+use ggs::benchmark::{missing_files, run, BenchPair, CloudRef, RunConfig};
+use ggs::io::kitti::write_kitti_bin;
+use ggs::refine::RefineConfig;
+use ggs::rotations::RotationSet;
+use ggs::transform::Rigid;
+use std::path::{Path, PathBuf};
+
+fn temp_dir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("ggs-bench-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+#[test]
+fn shipped_protocols_have_the_published_pair_counts() {
+    let nowhere = Path::new("/nonexistent-data");
+    assert_eq!(Protocol::ThreeDMatch.pairs(nowhere).unwrap().len(), 1523);
+    assert_eq!(Protocol::Kitti.pairs(nowhere).unwrap().len(), 555);
+    assert_eq!(eth_selection().unwrap().len(), 713);
+    let fp = Protocol::Fpv1.pairs(nowhere).unwrap();
+    assert_eq!(fp.len(), 1724);
+    let ids: std::collections::HashSet<&str> = fp.iter().map(|p| p.id.as_str()).collect();
+    assert_eq!(ids.len(), 1724, "pair ids are unique");
+    // ETH per scene, as in Perfect Match's benchmark.
+    let per_scene = |s: &str| eth_selection().unwrap().iter().filter(|p| p.0 == s).count();
+    assert_eq!(
+        [
+            per_scene("gazebo_summer"),
+            per_scene("gazebo_winter"),
+            per_scene("wood_autmn"),
+            per_scene("wood_summer")
+        ],
+        [184, 289, 115, 125]
+    );
+}
+
+#[test]
+fn threedmatch_ground_truth_equals_the_reference_gt_logs() {
+    let Some(shared) = common::shared_dir() else {
+        return;
+    };
+    let data = Path::new("/data");
+    let pairs = Protocol::ThreeDMatch.pairs(data).unwrap();
+    let gt_dir = shared.join("reference/protocols/3dmatch_gt");
+    let mut checked = 0;
+    for scene in std::fs::read_dir(&gt_dir).unwrap() {
+        let scene = scene.unwrap().path();
+        let name = scene.file_name().unwrap().to_str().unwrap().to_string();
+        let log_path = scene.join("gt.log");
+        let log = parse_gt_log(&log_path, &std::fs::read_to_string(&log_path).unwrap()).unwrap();
+        for p in pairs
+            .iter()
+            .filter(|p| p.id.starts_with(&format!("{name}/")))
+        {
+            let (i, j) = p.id[name.len() + 1..].split_once('_').unwrap();
+            let t = log[&(i.parse().unwrap(), j.parse().unwrap())];
+            assert!(
+                (t.rotation - p.ground_truth.rotation).amax() < 1e-8,
+                "{}",
+                p.id
+            );
+            assert!((t.translation - p.ground_truth.translation).amax() < 1e-8);
+            // gt.log maps cloud j into cloud i: source j, target i.
+            assert_eq!(
+                p.source,
+                CloudRef::File(data.join(&name).join(format!("cloud_bin_{j}.ply")))
+            );
+            checked += 1;
+        }
+    }
+    assert_eq!(checked, 1523);
+}
+
+#[test]
+fn kitti_and_fpv1_rows_match_the_reference_csv() {
+    let data = Path::new("/d");
+    let k = Protocol::Kitti.pairs(data).unwrap();
+    assert_eq!(k[0].id, "08/000014_000000");
+    assert_eq!(
+        k[0].source,
+        CloudRef::File(data.join("08/velodyne/000000.bin"))
+    );
+    assert!((k[0].ground_truth.translation.x + 9.181639565156512).abs() < 1e-12);
+    let f = Protocol::Fpv1.pairs(data).unwrap();
+    assert_eq!(f[0].id, "tr_scan_000/0_4");
+    assert!((f[0].overlap.unwrap() - 0.6010421709046385).abs() < 1e-12);
+    assert!((f[0].ground_truth.rotation[(0, 0)] - 0.7657525588658064).abs() < 1e-12);
+    match &f[0].target {
+        CloudRef::Visible {
+            indices, transform, ..
+        } => {
+            assert_eq!(indices, &data.join("visible/tr_scan_000/0.txt"));
+            assert_eq!(transform.as_ref(), Some(&f[0].ground_truth));
+        }
+        other => panic!("{other:?}"),
+    }
+}
+
+#[test]
+fn eth_reads_the_users_gt_logs_and_names_missing_ones() {
+    let dir = temp_dir("eth");
+    let e = Protocol::Eth.pairs(&dir).unwrap_err().to_string();
+    assert!(
+        e.contains("4 missing") && e.contains("gazebo_summer"),
+        "{e}"
+    );
+    // gt.log records in either direction.
+    let sel = eth_selection().unwrap();
+    for scene in ggs::benchmark::protocol::ETH_SCENES {
+        std::fs::create_dir_all(dir.join(scene)).unwrap();
+        let mut log = String::new();
+        for (s, i, j, _) in sel.iter().filter(|p| p.0 == scene) {
+            assert_eq!(s, scene);
+            let (a, b, x) = if (i + j) % 2 == 0 {
+                (i, j, 1.0)
+            } else {
+                (j, i, -1.0)
+            };
+            log += &format!("{a} {b} 2\n1 0 0 {x}\n0 1 0 0\n0 0 1 0\n0 0 0 1\n");
+        }
+        std::fs::write(dir.join(scene).join("gt.log"), log).unwrap();
+    }
+    let pairs = Protocol::Eth.pairs(&dir).unwrap();
+    assert_eq!(pairs.len(), 713);
+    for p in &pairs {
+        // Inverted where the record was (j, i): always +1 along x.
+        assert_eq!(p.ground_truth.translation.x, 1.0, "{}", p.id);
+    }
+    let (count, first) = missing_files(&pairs, 3);
+    assert!(count > 100 && first.len() == 3, "{count}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// A tiny KITTI-layout data set from the bundled bunny views, three pairs.
+fn kitti_like(dir: &Path) -> Vec<BenchPair> {
+    let root = common::repo_root().join("tests/data");
+    let a = ggs::io::read_cloud(&root.join("bun0.pcd"), None)
+        .unwrap()
+        .cloud;
+    let b = ggs::io::read_cloud(&root.join("bun4.pcd"), None)
+        .unwrap()
+        .cloud;
+    let gt_text = std::fs::read_to_string(root.join("bun0_to_bun4_groundtruth.txt")).unwrap();
+    let v: Vec<f64> = gt_text
+        .lines()
+        .filter(|l| !l.starts_with('#'))
+        .flat_map(str::split_whitespace)
+        .map(|s| s.parse().unwrap())
+        .collect();
+    let gt = Rigid::from_row_major(&v, 1e-6).unwrap();
+    let seq = dir.join("08/velodyne");
+    std::fs::create_dir_all(&seq).unwrap();
+    write_kitti_bin(&seq.join("000000.bin"), &a.points).unwrap();
+    write_kitti_bin(&seq.join("000001.bin"), &b.points).unwrap();
+    let file = |f: &str| CloudRef::File(seq.join(f));
+    let pair = |id: &str, s: &str, t: &str, gt: Rigid| BenchPair {
+        id: id.into(),
+        source: file(s),
+        target: file(t),
+        ground_truth: gt,
+        voxel: Some(0.01),
+        overlap: None,
+    };
+    vec![
+        pair("a", "000000.bin", "000001.bin", gt),
+        pair("b", "000001.bin", "000000.bin", gt.inverse()),
+        pair("missing", "000002.bin", "000000.bin", gt),
+    ]
+}
+
+fn config() -> RunConfig {
+    RunConfig {
+        voxel: None,
+        rotations: RotationSet::named("limited15").unwrap(),
+        refine: Some(RefineConfig::default()),
+        threads: 2,
+        max_rre_deg: 10.0,
+        max_rte: Some(0.01),
+        default_voxel: None,
+    }
+}
+
+fn without_times(csv: &str) -> String {
+    let header: Vec<&str> = csv.lines().next().unwrap().split(',').collect();
+    csv.lines()
+        .map(|l| {
+            l.split(',')
+                .zip(&header)
+                .filter(|(_, h)| !h.ends_with("_ms"))
+                .map(|(f, _)| f)
+                .collect::<Vec<_>>()
+                .join(",")
+        })
+        .collect::<Vec<_>>()
+        .join("\n")
+}
+
+#[test]
+fn an_interrupted_run_resumes_to_the_same_csv() {
+    let dir = temp_dir("resume");
+    let pairs = kitti_like(&dir.join("data"));
+    let whole = dir.join("whole");
+    let once = run("kitti-like", &pairs, &config(), true, &whole, |_, _, _| {}).unwrap();
+    assert_eq!(once.summary.pairs, 3);
+    assert_eq!(once.summary.failed_to_run, 1);
+    assert!(once.rows[2]
+        .error
+        .as_deref()
+        .unwrap()
+        .contains("000002.bin"));
+    assert!(
+        once.rows[0].success && once.rows[1].success,
+        "{:?}",
+        once.rows
+    );
+    // "Kill" after the first pair: run a prefix, tear the last line, then run everything.
+    let part = dir.join("part");
+    run(
+        "kitti-like",
+        &pairs[..2],
+        &config(),
+        true,
+        &part,
+        |_, _, _| {},
+    )
+    .unwrap();
+    let mut text = std::fs::read_to_string(part.join("pairs.csv")).unwrap();
+    let keep = text.trim_end().rfind('\n').unwrap() + 1;
+    text.truncate(keep + 10);
+    std::fs::write(part.join("pairs.csv"), &text).unwrap();
+    let resumed = run("kitti-like", &pairs, &config(), true, &part, |_, _, _| {}).unwrap();
+    assert_eq!(resumed.resumed, 1);
+    let a = std::fs::read_to_string(whole.join("pairs.csv")).unwrap();
+    let b = std::fs::read_to_string(part.join("pairs.csv")).unwrap();
+    assert_eq!(without_times(&a), without_times(&b));
+    for f in ["results.json", "summary.md", "recall.svg"] {
+        assert!(part.join(f).is_file(), "{f}");
+    }
+    let md = std::fs::read_to_string(part.join("summary.md")).unwrap();
+    assert!(md.contains("| kitti-like | 3 | 66.67 |"), "{md}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
