@@ -246,3 +246,57 @@ fn an_interrupted_run_resumes_to_the_same_csv() {
     assert!(md.contains("| kitti-like | 3 | 66.67 |"), "{md}");
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn visible_point_views_load_and_register() {
+    // FAUST-partial style: two index sets of one scan, the target moved by T.
+    let dir = temp_dir("visible");
+    let scan = common::repo_root().join("tests/data/bun0.pcd");
+    let n = ggs::io::read_cloud(&scan, None).unwrap().cloud.len();
+    let write = |name: &str, idx: Vec<usize>| {
+        let p = dir.join(name);
+        let text: Vec<String> = idx.iter().map(usize::to_string).collect();
+        std::fs::write(&p, text.join("\n")).unwrap();
+        p
+    };
+    let a = write("a.txt", (0..n * 3 / 4).collect());
+    let b = write("b.txt", (n / 4..n).collect());
+    let t = Rigid::new(
+        *nalgebra::Rotation3::from_euler_angles(0.3, -0.2, 0.5).matrix(),
+        nalgebra::Vector3::new(0.05, -0.02, 0.01),
+    );
+    let pair = BenchPair {
+        id: "scan/0_1".into(),
+        source: CloudRef::Visible {
+            cloud: scan.clone(),
+            indices: b,
+            transform: None,
+        },
+        target: CloudRef::Visible {
+            cloud: scan.clone(),
+            indices: a,
+            transform: Some(t),
+        },
+        ground_truth: t,
+        voxel: Some(0.006),
+        overlap: Some(0.5),
+    };
+    let target = pair.target.load().unwrap();
+    assert_eq!(target.len(), n * 3 / 4);
+    let row = ggs::benchmark::run_pair(&pair, &config());
+    assert!(row.success, "{row:?}");
+    assert!(row.rre < 0.5 && row.rte < 1e-3, "{row:?}");
+    // Bad index files are named with the line.
+    let bad = write("bad.txt", vec![]);
+    std::fs::write(&bad, "0 1\n2 x\n").unwrap();
+    let e = ggs::benchmark::read_indices(&bad, n)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("line 2") && e.contains("'x'"), "{e}");
+    std::fs::write(&bad, format!("{n}\n")).unwrap();
+    let e = ggs::benchmark::read_indices(&bad, n)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("out of range"), "{e}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
