@@ -44,20 +44,19 @@ fn manifest(dir: &Path) -> PathBuf {
     p
 }
 
+/// `ggs bench manifest M --out OUT` plus `extra`.
+fn bench_manifest(m: &Path, out: &Path, extra: &[&str]) -> Output {
+    let mut args = vec!["bench", "manifest", s(m), "--out", s(out)];
+    args.extend_from_slice(extra);
+    ggs(&args)
+}
+
 #[test]
 fn manifest_run_writes_its_files_and_resumes() {
     let dir = tmp("manifest");
     let m = manifest(&dir);
     let out = dir.join("run");
-    let o = ggs(&[
-        "bench",
-        "manifest",
-        s(&m),
-        "--out",
-        s(&out),
-        "--threads",
-        "2",
-    ]);
+    let o = bench_manifest(&m, &out, &["--threads", "2"]);
     let stdout = String::from_utf8_lossy(&o.stdout);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert!(stdout.contains("| manifest | 2 | 100.00 |"), "{stdout}");
@@ -70,20 +69,12 @@ fn manifest_run_writes_its_files_and_resumes() {
     assert_eq!(json["summary"]["successes"], 2);
     assert_eq!(json["pairs"][1]["id"], "back");
     // Run again: nothing new to do.
-    let o = ggs(&["bench", "manifest", s(&m), "--out", s(&out), "--json", "-q"]);
+    let o = bench_manifest(&m, &out, &["--json", "-q"]);
     assert!(o.status.success());
     let summary: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert_eq!(summary["recall"], 1.0);
     // --pairs selects by id.
-    let o = ggs(&[
-        "bench",
-        "manifest",
-        s(&m),
-        "--out",
-        s(&out),
-        "--pairs",
-        "back",
-    ]);
+    let o = bench_manifest(&m, &out, &["--pairs", "back"]);
     assert!(String::from_utf8_lossy(&o.stdout).contains("1 pairs (1 from an earlier run)"));
     std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -138,13 +138,30 @@ impl Protocol {
     }
 }
 
-/// Rows of an embedded CSV (header skipped), split on commas, with 1-based line numbers.
-fn csv_rows<'a>(text: &'a str) -> impl Iterator<Item = (usize, Vec<&'a str>)> + 'a {
+/// Rows of an embedded CSV `file` (header skipped), split on commas, with their 1-based line
+/// numbers; a row without exactly as many fields as the header is an error.
+fn csv_rows<'a>(
+    file: &'static str,
+    text: &'a str,
+) -> impl Iterator<Item = Result<(usize, Vec<&'a str>)>> + 'a {
+    let header = text.lines().next().unwrap_or("");
+    let n = header.split(',').count();
     text.lines()
         .enumerate()
         .skip(1)
         .filter(|(_, l)| !l.trim().is_empty())
-        .map(|(i, l)| (i + 1, l.split(',').map(str::trim).collect()))
+        .map(move |(i, l)| {
+            let f: Vec<&str> = l.split(',').map(str::trim).collect();
+            if f.len() == n {
+                Ok((i + 1, f))
+            } else {
+                Err(meta_error(
+                    file,
+                    i + 1,
+                    format!("expected {n} fields ({header}), found {}", f.len()),
+                ))
+            }
+        })
 }
 
 /// An error in shipped metadata (a broken build, not bad user input).
@@ -172,10 +189,8 @@ fn threedmatch_pairs(data: &Path) -> Result<Vec<BenchPair>> {
     const PAIRS: &str = "3dmatch_1623_pairs_with_overlap.csv";
     const PREDATOR: &str = "3dmatch_overlap_predator.csv";
     let mut overlap: HashMap<(String, u32, u32), f64> = HashMap::new();
-    for (line, f) in csv_rows(THREEDMATCH_PREDATOR) {
-        if f.len() != 4 {
-            return Err(meta_error(PREDATOR, line, "expected folder,i,j,overlap"));
-        }
+    for row in csv_rows(PREDATOR, THREEDMATCH_PREDATOR) {
+        let (line, f) = row?;
         let key = (
             f[0].to_string(),
             num(PREDATOR, line, "i", f[1])?,
@@ -184,10 +199,8 @@ fn threedmatch_pairs(data: &Path) -> Result<Vec<BenchPair>> {
         overlap.insert(key, num(PREDATOR, line, "overlap", f[3])?);
     }
     let mut pairs = Vec::new();
-    for (line, f) in csv_rows(THREEDMATCH_PAIRS) {
-        if f.len() < 19 {
-            return Err(meta_error(PAIRS, line, "expected folder,i,j,T00..T33,..."));
-        }
+    for row in csv_rows(PAIRS, THREEDMATCH_PAIRS) {
+        let (line, f) = row?;
         let (scene, i, j): (&str, u32, u32) = (
             f[0],
             num(PAIRS, line, "i", f[1])?,
@@ -215,15 +228,9 @@ fn threedmatch_pairs(data: &Path) -> Result<Vec<BenchPair>> {
 /// KITTI: the 555 test pairs of sequences 08–10; T maps frame1 (source) into frame0.
 fn kitti_pairs(data: &Path) -> Result<Vec<BenchPair>> {
     const FILE: &str = "kitti_test_555_pairs.csv";
-    csv_rows(KITTI_PAIRS)
-        .map(|(line, f)| {
-            if f.len() != 19 {
-                return Err(meta_error(
-                    FILE,
-                    line,
-                    "expected seq,frame0,frame1,T00..T33",
-                ));
-            }
+    csv_rows(FILE, KITTI_PAIRS)
+        .map(|row| {
+            let (line, f) = row?;
             let scan = |frame: &str| {
                 CloudRef::File(
                     data.join(f[0])
@@ -256,10 +263,8 @@ pub const ETH_SCENES: [&str; 4] = [
 pub fn eth_selection() -> Result<Vec<(String, u32, u32, f64)>> {
     const FILE: &str = "eth_overlap_perfect_match.csv";
     let mut overlap: HashMap<(String, u32, u32), f64> = HashMap::new();
-    for (line, f) in csv_rows(ETH_OVERLAP) {
-        if f.len() != 4 {
-            return Err(meta_error(FILE, line, "expected folder,i,j,overlap"));
-        }
+    for row in csv_rows(FILE, ETH_OVERLAP) {
+        let (line, f) = row?;
         overlap.insert(
             (
                 f[0].to_string(),
@@ -404,15 +409,9 @@ pub fn fpv1_view_index(name: &str) -> Option<u32> {
 fn fpv1_pairs(data: &Path) -> Result<Vec<BenchPair>> {
     const FILE: &str = "fpv1_benchmark_1724_pairs.csv";
     let mut ids = HashSet::new();
-    csv_rows(FPV1_PAIRS)
-        .map(|(line, f)| {
-            if f.len() != 20 {
-                return Err(meta_error(
-                    FILE,
-                    line,
-                    "expected Scan,Viewpoint_i,Viewpoint_j,overlap,T00..T33",
-                ));
-            }
+    csv_rows(FILE, FPV1_PAIRS)
+        .map(|row| {
+            let (line, f) = row?;
             let view = |s: &str| {
                 fpv1_view_index(s).ok_or_else(|| {
                     meta_error(FILE, line, format!("cannot read the view index of '{s}'"))
@@ -457,6 +456,17 @@ mod tests {
         assert_eq!(fpv1_view_index("viewpoint0-[-0.41 2.43 0.08]"), Some(0));
         assert_eq!(fpv1_view_index("viewpoint11-[ 0.3 1.9 -1.1]"), Some(11));
         assert_eq!(fpv1_view_index("view3"), None);
+    }
+
+    #[test]
+    fn metadata_rows_need_the_header_width() {
+        let rows: Vec<_> = csv_rows("m.csv", "a,b,c\n1,2,3\n\n4,5\n").collect();
+        assert_eq!(rows[0].as_ref().unwrap(), &(2, vec!["1", "2", "3"]));
+        let e = rows[1].as_ref().unwrap_err().to_string();
+        assert!(
+            e.contains("line 4") && e.contains("expected 3 fields"),
+            "{e}"
+        );
     }
 
     #[test]
