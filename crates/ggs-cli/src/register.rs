@@ -93,12 +93,7 @@ fn write_outputs(io_args: &IoArgs, source: &Cloud, t: &Rigid) -> Result<()> {
         io::write_atomic(path, t.to_text().as_bytes())?;
     }
     if let Some(path) = &io_args.aligned {
-        ply::write_ply(
-            path,
-            &source.transformed(t).points,
-            None,
-            Default::default(),
-        )?;
+        io::write_cloud(path, &source.transformed(t).points, None)?;
     }
     Ok(())
 }
@@ -106,7 +101,7 @@ fn write_outputs(io_args: &IoArgs, source: &Cloud, t: &Rigid) -> Result<()> {
 /// Input format and outputs, shared by `register` and `refine`.
 #[derive(Args)]
 pub struct IoArgs {
-    /// Force the input format (ply, pcd, xyz, txt, csv, pts, npy) of both clouds.
+    /// Force the input format (ply, pcd, xyz, txt, csv, pts, npy, bin) of both clouds.
     #[arg(long)]
     pub format: Option<String>,
     /// Print everything as JSON on stdout.
@@ -115,8 +110,9 @@ pub struct IoArgs {
     /// Write the final 4×4 matrix to this file (four lines of four numbers).
     #[arg(short = 'o', long = "output", value_name = "T.txt")]
     pub output: Option<PathBuf>,
-    /// Write the source, moved by the final T, to this PLY file.
-    #[arg(long, value_name = "OUT.ply")]
+    /// Write the source, moved by the final T, to this file (format by extension: .ply,
+    /// .pcd, .xyz/.txt/.pts/.csv, .npy, .bin).
+    #[arg(long, value_name = "OUT")]
     pub aligned: Option<PathBuf>,
 }
 
@@ -132,7 +128,9 @@ pub struct RotationsArgs {
 fn parse_format(f: &Option<String>) -> Result<Option<Format>> {
     match f {
         Some(f) => Ok(Some(Format::from_name(f).with_context(|| {
-            format!("--format: unknown format '{f}' (known: ply, pcd, xyz, txt, csv, pts, npy)")
+            format!(
+                "--format: unknown format '{f}' (known: ply, pcd, xyz, txt, csv, pts, npy, bin)"
+            )
         })?)),
         None => Ok(None),
     }

@@ -316,3 +316,20 @@ fn refine_command_from_an_initial_guess() {
     refine_with(&init, &["--kernel", "huber:-1"], "--kernel");
     std::fs::remove_dir_all(&d).unwrap();
 }
+
+#[test]
+fn aligned_output_in_the_format_of_its_extension() {
+    let d = tmp("aligned-formats");
+    for ext in ["pcd", "npy", "xyz"] {
+        let out = d.join(format!("moved.{ext}"));
+        let o = register_pair(&["--refine", "none", "-q", "--aligned", s(&out)]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let moved = ggs::io::read_cloud(&out, None).unwrap().cloud;
+        assert_eq!(moved.len(), 397, "{ext}");
+    }
+    let o = register_pair(&["--refine", "none", "-q", "--aligned", s(&d.join("m.weird"))]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("writable"));
+    assert!(!d.join("m.weird").exists());
+    std::fs::remove_dir_all(&d).unwrap();
+}

@@ -127,6 +127,33 @@ pub fn read_cloud(path: &Path, format: Option<Format>) -> Result<LoadedCloud> {
     })
 }
 
+/// Write a point cloud in the format of `format`, or of the path's extension: PLY (binary
+/// little endian, doubles), PCD (binary, doubles), XYZ/TXT/PTS (text, round-trip precision),
+/// NPY (float64 N×3) or KITTI `.bin` (float32, reflectance 0). CSV gets a comma-free text
+/// layout too (`x y z` per line), which ggs and most tools read. Atomic.
+pub fn write_cloud(
+    path: &Path,
+    points: &[crate::cloud::Point],
+    format: Option<Format>,
+) -> Result<()> {
+    let fmt = format
+        .or_else(|| Format::from_extension(path))
+        .ok_or_else(|| GgsError::UnknownFormat {
+            path: path.to_path_buf(),
+            what: "(writable: .ply, .pcd, .xyz/.txt/.pts/.csv, .npy, .bin)".to_string(),
+        })?;
+    match fmt {
+        Format::Ply => ply::write_ply(path, points, None, Default::default()),
+        Format::Pcd => pcd::write_pcd(path, points),
+        Format::Text => xyz::write_xyz(path, points),
+        Format::Npy => {
+            let flat: Vec<f64> = points.iter().flatten().copied().collect();
+            npy::write_npy_f64(path, points.len(), 3, &flat)
+        }
+        Format::KittiBin => kitti::write_kitti_bin(path, points),
+    }
+}
+
 /// Write `bytes` to `path` atomically: a temporary file in the same directory, flushed and
 /// synced, then renamed over `path`. A failure leaves no partial `path` behind.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
@@ -158,6 +185,37 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn every_writable_format_round_trips() {
+        let dir = std::env::temp_dir().join(format!("ggs-write-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let pts = vec![
+            [0.1, -2.5e-7, 1234.5678901234567],
+            [-3.0, 1.0 / 3.0, 0.0],
+            [6e5, 4.2e6, -12.25],
+        ];
+        for ext in ["ply", "pcd", "xyz", "txt", "pts", "csv", "npy"] {
+            let p = dir.join(format!("c.{ext}"));
+            write_cloud(&p, &pts, None).unwrap();
+            let back = read_cloud(&p, None).unwrap().cloud.points;
+            assert_eq!(back, pts, "{ext}");
+        }
+        // KITTI stores float32.
+        let p = dir.join("c.bin");
+        write_cloud(&p, &pts, None).unwrap();
+        let back = read_cloud(&p, None).unwrap().cloud.points;
+        for (a, b) in back.iter().zip(&pts) {
+            for k in 0..3 {
+                assert_eq!(a[k], b[k] as f32 as f64);
+            }
+        }
+        let e = write_cloud(&dir.join("c.weird"), &pts, None)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("writable"), "{e}");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 
     fn tmpdir(tag: &str) -> std::path::PathBuf {
         let d = std::env::temp_dir().join(format!("ggs-io-{tag}-{}", std::process::id()));

@@ -342,6 +342,25 @@ fn read_compressed(
     }))
 }
 
+/// Write points as a PCD v0.7 `binary` file (`x y z` as 8-byte floats, full precision),
+/// atomically.
+pub fn write_pcd(path: &Path, points: &[Point]) -> Result<()> {
+    let mut out = format!(
+        "# .PCD v0.7 - Point Cloud Data file format (written by ggs)\nVERSION 0.7\n\
+         FIELDS x y z\nSIZE 8 8 8\nTYPE F F F\nCOUNT 1 1 1\nWIDTH {n}\nHEIGHT 1\n\
+         VIEWPOINT 0 0 0 1 0 0 0\nPOINTS {n}\nDATA binary\n",
+        n = points.len()
+    )
+    .into_bytes();
+    out.reserve(points.len() * 24);
+    for p in points {
+        for v in p {
+            out.extend_from_slice(&v.to_le_bytes());
+        }
+    }
+    super::write_atomic(path, &out)
+}
+
 /// LZF decompression (the format of liblzf, used by PCL's `binary_compressed`).
 pub fn lzf_decompress(input: &[u8], out_len: usize) -> std::result::Result<Vec<u8>, String> {
     // One input byte expands to at most ~88 output bytes: never trust `out_len` for the

@@ -16,6 +16,17 @@ fn split(line: &str) -> impl Iterator<Item = &str> {
 }
 
 /// Read points from delimited text.
+/// Write points as text, one `x y z` line each, in the shortest form that reads back to the
+/// same f64 values, atomically.
+pub fn write_xyz(path: &Path, points: &[Point]) -> Result<()> {
+    use std::fmt::Write as _;
+    let mut out = String::with_capacity(points.len() * 40);
+    for p in points {
+        let _ = writeln!(out, "{} {} {}", p[0], p[1], p[2]);
+    }
+    super::write_atomic(path, out.as_bytes())
+}
+
 pub fn parse_xyz(path: &Path, bytes: &[u8]) -> Result<Vec<Point>> {
     let text = std::str::from_utf8(bytes)
         .map_err(|e| GgsError::at_byte(path, e.valid_up_to() as u64, "not valid UTF-8 text"))?;
