@@ -101,7 +101,7 @@ fn write_outputs(io_args: &IoArgs, source: &Cloud, t: &Rigid) -> Result<()> {
 /// Input format and outputs, shared by `register` and `refine`.
 #[derive(Args)]
 pub struct IoArgs {
-    /// Force the input format (ply, pcd, xyz, txt, csv, pts, npy, bin) of both clouds.
+    /// Force the input format (ply, pcd, xyz, txt, csv, pts, npy, bin, obj, stl) of both clouds.
     #[arg(long)]
     pub format: Option<String>,
     /// Print everything as JSON on stdout.
@@ -129,7 +129,7 @@ fn parse_format(f: &Option<String>) -> Result<Option<Format>> {
     match f {
         Some(f) => Ok(Some(Format::from_name(f).with_context(|| {
             format!(
-                "--format: unknown format '{f}' (known: ply, pcd, xyz, txt, csv, pts, npy, bin)"
+                "--format: unknown format '{f}' (known: ply, pcd, xyz, txt, csv, pts, npy, bin, obj, stl)"
             )
         })?)),
         None => Ok(None),

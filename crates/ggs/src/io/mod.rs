@@ -5,6 +5,7 @@
 //! file and the line or byte offset of the problem.
 
 pub mod kitti;
+pub mod mesh;
 pub mod npy;
 pub mod pcd;
 pub mod ply;
@@ -25,6 +26,10 @@ pub enum Format {
     Npy,
     /// KITTI velodyne `.bin` (float32 x y z reflectance).
     KittiBin,
+    /// Wavefront OBJ mesh (its vertices).
+    Obj,
+    /// STL mesh, binary or ASCII (its distinct vertices).
+    Stl,
 }
 
 impl Format {
@@ -36,6 +41,8 @@ impl Format {
             "xyz" | "txt" | "csv" | "pts" | "text" => Format::Text,
             "npy" => Format::Npy,
             "bin" | "kitti" => Format::KittiBin,
+            "obj" => Format::Obj,
+            "stl" => Format::Stl,
             _ => return None,
         })
     }
@@ -93,6 +100,8 @@ pub fn read_cloud(path: &Path, format: Option<Format>) -> Result<LoadedCloud> {
         Format::Ply => ply::parse_ply(path, &bytes)?,
         Format::Pcd => pcd::parse_pcd(path, &bytes)?,
         Format::KittiBin => kitti::parse_kitti_bin(path, &bytes)?,
+        Format::Obj => mesh::parse_obj(path, &bytes)?.vertices,
+        Format::Stl => mesh::parse_stl(path, &bytes)?.vertices,
         Format::Text => xyz::parse_xyz(path, &bytes)?,
         Format::Npy => {
             let a = npy::parse_npy(path, &bytes)?;
@@ -151,6 +160,10 @@ pub fn write_cloud(
             npy::write_npy_f64(path, points.len(), 3, &flat)
         }
         Format::KittiBin => kitti::write_kitti_bin(path, points),
+        Format::Obj | Format::Stl => Err(GgsError::UnknownFormat {
+            path: path.to_path_buf(),
+            what: "(meshes are read, not written; writable: .ply, .pcd, .xyz/.txt/.pts/.csv, .npy, .bin)".to_string(),
+        }),
     }
 }
 
