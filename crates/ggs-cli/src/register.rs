@@ -101,7 +101,7 @@ fn write_outputs(io_args: &IoArgs, source: &Cloud, t: &Rigid) -> Result<()> {
 /// Input format and outputs, shared by `register` and `refine`.
 #[derive(Args)]
 pub struct IoArgs {
-    /// Force the input format (ply, pcd, xyz, txt, csv, pts, npy, bin, obj, stl) of both clouds.
+    /// Force the input format (ply, pcd, xyz, txt, csv, pts, npy, bin, las, laz, obj, stl) of both clouds.
     #[arg(long)]
     pub format: Option<String>,
     /// Print everything as JSON on stdout.
@@ -111,7 +111,7 @@ pub struct IoArgs {
     #[arg(short = 'o', long = "output", value_name = "T.txt")]
     pub output: Option<PathBuf>,
     /// Write the source, moved by the final T, to this file (format by extension: .ply,
-    /// .pcd, .xyz/.txt/.pts/.csv, .npy, .bin).
+    /// .pcd, .xyz/.txt/.pts/.csv, .npy, .bin, .las, .laz).
     #[arg(long, value_name = "OUT")]
     pub aligned: Option<PathBuf>,
 }
@@ -129,7 +129,7 @@ fn parse_format(f: &Option<String>) -> Result<Option<Format>> {
     match f {
         Some(f) => Ok(Some(Format::from_name(f).with_context(|| {
             format!(
-                "--format: unknown format '{f}' (known: ply, pcd, xyz, txt, csv, pts, npy, bin, obj, stl)"
+                "--format: unknown format '{f}' (known: ply, pcd, xyz, txt, csv, pts, npy, bin, las, laz, obj, stl)"
             )
         })?)),
         None => Ok(None),

@@ -5,6 +5,7 @@
 //! file and the line or byte offset of the problem.
 
 pub mod kitti;
+pub mod las;
 pub mod mesh;
 pub mod npy;
 pub mod pcd;
@@ -26,6 +27,8 @@ pub enum Format {
     Npy,
     /// KITTI velodyne `.bin` (float32 x y z reflectance).
     KittiBin,
+    /// ASPRS LAS or LAZ (scale and offset applied).
+    Las,
     /// Wavefront OBJ mesh (its vertices).
     Obj,
     /// STL mesh, binary or ASCII (its distinct vertices).
@@ -41,6 +44,7 @@ impl Format {
             "xyz" | "txt" | "csv" | "pts" | "text" => Format::Text,
             "npy" => Format::Npy,
             "bin" | "kitti" => Format::KittiBin,
+            "las" | "laz" => Format::Las,
             "obj" => Format::Obj,
             "stl" => Format::Stl,
             _ => return None,
@@ -59,6 +63,8 @@ impl Format {
             Some(Format::Ply)
         } else if bytes.starts_with(b"\x93NUMPY") {
             Some(Format::Npy)
+        } else if bytes.starts_with(b"LASF") {
+            Some(Format::Las)
         } else if bytes.starts_with(b"# .PCD") || bytes.starts_with(b"VERSION") {
             Some(Format::Pcd)
         } else {
@@ -100,6 +106,7 @@ pub fn read_cloud(path: &Path, format: Option<Format>) -> Result<LoadedCloud> {
         Format::Ply => ply::parse_ply(path, &bytes)?,
         Format::Pcd => pcd::parse_pcd(path, &bytes)?,
         Format::KittiBin => kitti::parse_kitti_bin(path, &bytes)?,
+        Format::Las => las::parse_las(path, &bytes)?,
         Format::Obj => mesh::parse_obj(path, &bytes)?.vertices,
         Format::Stl => mesh::parse_stl(path, &bytes)?.vertices,
         Format::Text => xyz::parse_xyz(path, &bytes)?,
@@ -138,7 +145,8 @@ pub fn read_cloud(path: &Path, format: Option<Format>) -> Result<LoadedCloud> {
 
 /// Write a point cloud in the format of `format`, or of the path's extension: PLY (binary
 /// little endian, doubles), PCD (binary, doubles), XYZ/TXT/PTS (text, round-trip precision),
-/// NPY (float64 N×3) or KITTI `.bin` (float32, reflectance 0). CSV gets a comma-free text
+/// NPY (float64 N×3), KITTI `.bin` (float32, reflectance 0) or LAS/LAZ (32-bit integers
+/// with a per-file scale: see [`las::write_las`]). CSV gets a comma-free text
 /// layout too (`x y z` per line), which ggs and most tools read. Atomic.
 pub fn write_cloud(
     path: &Path,
@@ -149,7 +157,7 @@ pub fn write_cloud(
         .or_else(|| Format::from_extension(path))
         .ok_or_else(|| GgsError::UnknownFormat {
             path: path.to_path_buf(),
-            what: "(writable: .ply, .pcd, .xyz/.txt/.pts/.csv, .npy, .bin)".to_string(),
+            what: "(writable: .ply, .pcd, .xyz/.txt/.pts/.csv, .npy, .bin, .las, .laz)".to_string(),
         })?;
     match fmt {
         Format::Ply => ply::write_ply(path, points, None, Default::default()),
@@ -160,9 +168,10 @@ pub fn write_cloud(
             npy::write_npy_f64(path, points.len(), 3, &flat)
         }
         Format::KittiBin => kitti::write_kitti_bin(path, points),
+        Format::Las => las::write_las(path, points),
         Format::Obj | Format::Stl => Err(GgsError::UnknownFormat {
             path: path.to_path_buf(),
-            what: "(meshes are read, not written; writable: .ply, .pcd, .xyz/.txt/.pts/.csv, .npy, .bin)".to_string(),
+            what: "(meshes are read, not written; writable: .ply, .pcd, .xyz/.txt/.pts/.csv, .npy, .bin, .las, .laz)".to_string(),
         }),
     }
 }

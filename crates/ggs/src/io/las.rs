@@ -1,0 +1,138 @@
+//! ASPRS LAS and LAZ (LASzip-compressed LAS) through the maintained `las` crate (pure Rust,
+//! `laz` feature). Coordinates come back with each file's scale and offset applied, in f64.
+
+use crate::cloud::Point;
+use crate::error::{GgsError, Result};
+use std::path::Path;
+
+/// Read every point of a LAS or LAZ file (the format is in the header, not the extension).
+pub fn parse_las(path: &Path, bytes: &[u8]) -> Result<Vec<Point>> {
+    // The reader wants an owned source: one copy of the file's bytes.
+    let mut reader = las::Reader::new(std::io::Cursor::new(bytes.to_vec()))
+        .map_err(|e| GgsError::in_file(path, format!("LAS header: {e}")))?;
+    let n = reader.header().number_of_points();
+    let mut out = Vec::with_capacity(n.min(1 << 28) as usize);
+    for (k, p) in reader.points().enumerate() {
+        let p = p.map_err(|e| GgsError::in_file(path, format!("LAS point {k} of {n}: {e}")))?;
+        out.push([p.x, p.y, p.z]);
+    }
+    if (out.len() as u64) < n {
+        return Err(GgsError::in_file(
+            path,
+            format!(
+                "the header announces {n} points, the file holds {}",
+                out.len()
+            ),
+        ));
+    }
+    Ok(out)
+}
+
+/// Write points as LAS 1.4 (point format 0), LAZ-compressed when `path` ends in `.laz`,
+/// atomically. Coordinates are stored as 32-bit integers: offset = the bounding box's
+/// minimum, scale = the smallest power of ten that spans the box in 2^31 steps (at least
+/// 1e-9), so each coordinate is kept to half that scale.
+pub fn write_las(path: &Path, points: &[Point]) -> Result<()> {
+    let mut lo = [f64::INFINITY; 3];
+    let mut hi = [f64::NEG_INFINITY; 3];
+    for p in points {
+        for a in 0..3 {
+            lo[a] = lo[a].min(p[a]);
+            hi[a] = hi[a].max(p[a]);
+        }
+    }
+    let transform = |a: usize| {
+        let extent = if points.is_empty() {
+            0.0
+        } else {
+            hi[a] - lo[a]
+        };
+        las::Transform {
+            scale: las_scale(extent),
+            offset: if points.is_empty() { 0.0 } else { lo[a] },
+        }
+    };
+    let mut builder = las::Builder::from((1, 4));
+    builder.transforms = las::Vector {
+        x: transform(0),
+        y: transform(1),
+        z: transform(2),
+    };
+    builder.point_format.is_compressed = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("laz"));
+    let err = |e: las::Error| GgsError::in_file(path, format!("LAS writer: {e}"));
+    let header = builder.into_header().map_err(err)?;
+    let mut writer = las::Writer::new(std::io::Cursor::new(Vec::new()), header).map_err(err)?;
+    for p in points {
+        writer
+            .write_point(las::Point {
+                x: p[0],
+                y: p[1],
+                z: p[2],
+                ..Default::default()
+            })
+            .map_err(err)?;
+    }
+    let bytes = writer.into_inner().map_err(err)?.into_inner();
+    super::write_atomic(path, &bytes)
+}
+
+/// The smallest power of ten, at least 1e-9, that spans `extent` in fewer than 2^31 steps.
+pub fn las_scale(extent: f64) -> f64 {
+    let mut k = -9;
+    while extent / 10f64.powi(k) >= 2f64.powi(31) - 1.0 {
+        k += 1;
+    }
+    10f64.powi(k)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn las_and_laz_round_trip_within_the_scale() {
+        let dir = std::env::temp_dir().join(format!("ggs-las-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        // Georeferenced-style coordinates.
+        let pts: Vec<Point> = (0..500)
+            .map(|i| {
+                let t = i as f64 * 0.37;
+                [
+                    512_345.678 + t.sin() * 20.0,
+                    4_210_000.25 + t,
+                    120.5 + t.cos(),
+                ]
+            })
+            .collect();
+        for ext in ["las", "laz"] {
+            let p = dir.join(format!("c.{ext}"));
+            write_las(&p, &pts).unwrap();
+            let back = parse_las(&p, &std::fs::read(&p).unwrap()).unwrap();
+            assert_eq!(back.len(), pts.len());
+            for k in 0..3 {
+                let (lo, hi) = pts
+                    .iter()
+                    .fold((f64::MAX, f64::MIN), |(l, h), p| (l.min(p[k]), h.max(p[k])));
+                let tol = 0.5 * las_scale(hi - lo) + 1e-9;
+                for (a, b) in back.iter().zip(&pts) {
+                    assert!((a[k] - b[k]).abs() <= tol, "{ext}: {a:?} vs {b:?}");
+                }
+            }
+        }
+        let las_size = std::fs::metadata(dir.join("c.las")).unwrap().len();
+        let laz_size = std::fs::metadata(dir.join("c.laz")).unwrap().len();
+        assert!(laz_size < las_size, "{laz_size} vs {las_size}");
+        let bytes = std::fs::read(dir.join("c.las")).unwrap();
+        let e = parse_las(Path::new("t.las"), &bytes[..bytes.len() - 30])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("t.las") && e.contains("LAS"), "{e}");
+        let e = parse_las(Path::new("t.las"), b"LASF")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("LAS header"), "{e}");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}
