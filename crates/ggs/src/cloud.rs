@@ -35,6 +35,20 @@ impl Aabb {
     }
 }
 
+/// Axis-aligned bounding box of `points`; `None` if empty.
+pub fn bounds(points: &[Point]) -> Option<Aabb> {
+    let first = *points.first()?;
+    let mut min = first;
+    let mut max = first;
+    for p in points {
+        for d in 0..3 {
+            min[d] = min[d].min(p[d]);
+            max[d] = max[d].max(p[d]);
+        }
+    }
+    Some(Aabb { min, max })
+}
+
 impl Cloud {
     pub fn new(points: Vec<Point>) -> Self {
         Cloud { points }
@@ -61,16 +75,7 @@ impl Cloud {
 
     /// Bounding box; `None` for an empty cloud.
     pub fn aabb(&self) -> Option<Aabb> {
-        let first = *self.points.first()?;
-        let mut min = first;
-        let mut max = first;
-        for p in &self.points {
-            for d in 0..3 {
-                min[d] = min[d].min(p[d]);
-                max[d] = max[d].max(p[d]);
-            }
-        }
-        Some(Aabb { min, max })
+        bounds(&self.points)
     }
 
     /// Arithmetic mean of the points, summed in file order (deterministic); `None` if empty.

@@ -33,24 +33,13 @@ pub fn parse_las(path: &Path, bytes: &[u8]) -> Result<Vec<Point>> {
 /// minimum, scale = the smallest power of ten that spans the box in 2^31 steps (at least
 /// 1e-9), so each coordinate is kept to half that scale.
 pub fn write_las(path: &Path, points: &[Point]) -> Result<()> {
-    let mut lo = [f64::INFINITY; 3];
-    let mut hi = [f64::NEG_INFINITY; 3];
-    for p in points {
-        for a in 0..3 {
-            lo[a] = lo[a].min(p[a]);
-            hi[a] = hi[a].max(p[a]);
-        }
-    }
-    let transform = |a: usize| {
-        let extent = if points.is_empty() {
-            0.0
-        } else {
-            hi[a] - lo[a]
-        };
-        las::Transform {
-            scale: las_scale(extent),
-            offset: if points.is_empty() { 0.0 } else { lo[a] },
-        }
+    let b = crate::cloud::bounds(points).unwrap_or(crate::cloud::Aabb {
+        min: [0.0; 3],
+        max: [0.0; 3],
+    });
+    let transform = |a: usize| las::Transform {
+        scale: las_scale(b.max[a] - b.min[a]),
+        offset: b.min[a],
     };
     let mut builder = las::Builder::from((1, 4));
     builder.transforms = las::Vector {

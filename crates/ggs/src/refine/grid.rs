@@ -118,14 +118,7 @@ impl CellGrid {
         if !(h.is_finite() && h > 0.0) || points.is_empty() || points.len() > u32::MAX as usize {
             return None;
         }
-        let mut lo = [f64::INFINITY; 3];
-        let mut hi = [f64::NEG_INFINITY; 3];
-        for p in points {
-            for a in 0..3 {
-                lo[a] = lo[a].min(p[a]);
-                hi[a] = hi[a].max(p[a]);
-            }
-        }
+        let crate::cloud::Aabb { min: lo, max: hi } = crate::cloud::bounds(points)?;
         let inv_h = 1.0 / h;
         let mut dims = [0u64; 3];
         for a in 0..3 {
