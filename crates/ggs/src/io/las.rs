@@ -6,9 +6,9 @@ use crate::error::{GgsError, Result};
 use std::path::Path;
 
 /// Read every point of a LAS or LAZ file (the format is in the header, not the extension).
-pub fn parse_las(path: &Path, bytes: &[u8]) -> Result<Vec<Point>> {
-    // The reader wants an owned source: one copy of the file's bytes.
-    let mut reader = las::Reader::new(std::io::Cursor::new(bytes.to_vec()))
+/// Takes the file's bytes by value: the reader owns its source, so no copy is made.
+pub fn parse_las(path: &Path, bytes: Vec<u8>) -> Result<Vec<Point>> {
+    let mut reader = las::Reader::new(std::io::Cursor::new(bytes))
         .map_err(|e| GgsError::in_file(path, format!("LAS header: {e}")))?;
     let n = reader.header().number_of_points();
     let mut out = Vec::with_capacity(n.min(1 << 28) as usize);
@@ -98,7 +98,7 @@ mod tests {
         for ext in ["las", "laz"] {
             let p = dir.join(format!("c.{ext}"));
             write_las(&p, &pts).unwrap();
-            let back = parse_las(&p, &std::fs::read(&p).unwrap()).unwrap();
+            let back = parse_las(&p, std::fs::read(&p).unwrap()).unwrap();
             assert_eq!(back.len(), pts.len());
             for k in 0..3 {
                 let (lo, hi) = pts
@@ -114,11 +114,11 @@ mod tests {
         let laz_size = std::fs::metadata(dir.join("c.laz")).unwrap().len();
         assert!(laz_size < las_size, "{laz_size} vs {las_size}");
         let bytes = std::fs::read(dir.join("c.las")).unwrap();
-        let e = parse_las(Path::new("t.las"), &bytes[..bytes.len() - 30])
+        let e = parse_las(Path::new("t.las"), bytes[..bytes.len() - 30].to_vec())
             .unwrap_err()
             .to_string();
         assert!(e.contains("t.las") && e.contains("LAS"), "{e}");
-        let e = parse_las(Path::new("t.las"), b"LASF")
+        let e = parse_las(Path::new("t.las"), b"LASF".to_vec())
             .unwrap_err()
             .to_string();
         assert!(e.contains("LAS header"), "{e}");

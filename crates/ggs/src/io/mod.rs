@@ -106,7 +106,7 @@ pub fn read_cloud(path: &Path, format: Option<Format>) -> Result<LoadedCloud> {
         Format::Ply => ply::parse_ply(path, &bytes)?,
         Format::Pcd => pcd::parse_pcd(path, &bytes)?,
         Format::KittiBin => kitti::parse_kitti_bin(path, &bytes)?,
-        Format::Las => las::parse_las(path, &bytes)?,
+        Format::Las => las::parse_las(path, bytes)?,
         Format::Obj => mesh::parse_obj(path, &bytes)?.vertices,
         Format::Stl => mesh::parse_stl(path, &bytes)?.vertices,
         Format::Text => xyz::parse_xyz(path, &bytes)?,
