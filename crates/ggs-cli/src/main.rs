@@ -15,6 +15,7 @@ macro_rules! outln {
 }
 
 mod bench;
+mod partial;
 mod refine_args;
 mod register;
 
@@ -39,6 +40,9 @@ enum Command {
     Rotations(register::RotationsArgs),
     /// Run a benchmark protocol (3dmatch, kitti, eth, fpv1) or a manifest of pairs.
     Bench(Box<bench::BenchArgs>),
+    /// Generate partial-view pairs (FAUST-partial style) from scans or meshes, or rebuild
+    /// the published FPv1 pairs.
+    Partial(Box<partial::PartialArgs>),
 }
 
 /// Write `s` to stdout. Returns an error only for a real failure; a broken pipe marks stdout
@@ -77,6 +81,7 @@ fn main() -> ExitCode {
         Command::Refine(a) => register::run_refine(*a),
         Command::Rotations(a) => register::run_rotations(a),
         Command::Bench(a) => bench::run(*a),
+        Command::Partial(a) => partial::run(*a),
     };
     match outcome {
         Ok(()) => ExitCode::SUCCESS,

@@ -43,5 +43,30 @@ fn pipeline(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, pipeline);
+criterion_group!(benches, pipeline, partial_views);
 criterion_main!(benches);
+
+/// Hidden point removal of 200 000 points sampled on the bundled SMPL body, one camera.
+fn partial_views(c: &mut Criterion) {
+    use ggs::generator::{hpr, sampling, viewpoints};
+    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../tests/data/human_woman.obj");
+    let bytes = std::fs::read(&p).expect("bundled mesh");
+    let mesh = ggs::io::mesh::parse_obj(&p, &bytes).expect("mesh");
+    let pts = sampling::sample_surface(&mesh, 200_000, 0).expect("samples");
+    let off = viewpoints::floor_offset(&pts);
+    let floor: Vec<[f64; 3]> = pts
+        .iter()
+        .map(|p| [p[0] + off[0], p[1] + off[1], p[2] + off[2]])
+        .collect();
+    let cams = viewpoints::cameras(&floor, &viewpoints::ViewConfig::default());
+    let radius = hpr::flip_radius(&floor, 1000.0);
+    let mut g = c.benchmark_group("human_woman_200k");
+    g.sample_size(10);
+    g.bench_function("sample 200k points", |b| {
+        b.iter(|| sampling::sample_surface(&mesh, 200_000, 0).unwrap())
+    });
+    g.bench_function("hidden point removal, camera 0", |b| {
+        b.iter(|| hpr::visible_points(&floor, &cams[0], radius).unwrap())
+    });
+    g.finish();
+}

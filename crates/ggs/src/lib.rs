@@ -26,6 +26,7 @@ pub mod benchmark;
 pub mod cloud;
 pub mod correlate;
 pub mod error;
+pub mod generator;
 pub mod io;
 pub mod manifest;
 pub mod memory;

@@ -211,19 +211,109 @@ pub fn parse_ply(path: &Path, bytes: &[u8]) -> Result<Vec<Point>> {
                 })
         })
         .collect::<Result<_>>()?;
+    let mut no_faces = None;
     match h.encoding {
-        Encoding::Ascii => read_ascii(path, bytes, &h, vi, &xyz),
-        Encoding::BinaryLe => read_binary(path, bytes, &h, vi, &xyz, true),
-        Encoding::BinaryBe => read_binary(path, bytes, &h, vi, &xyz, false),
+        Encoding::Ascii => read_ascii(path, bytes, &h, vi, &xyz, &mut no_faces),
+        Encoding::BinaryLe => read_binary(path, bytes, &h, vi, &xyz, true, &mut no_faces),
+        Encoding::BinaryBe => read_binary(path, bytes, &h, vi, &xyz, false, &mut no_faces),
     }
 }
 
+/// Where face polygons are collected: the face element, its index list property, and the
+/// fan-triangulated output.
+struct FaceSink {
+    element: usize,
+    property: usize,
+    triangles: Vec<[u32; 3]>,
+    polygon: Vec<u32>,
+}
+
+impl FaceSink {
+    fn push_index(&mut self, path: &Path, v: f64, at: &str) -> Result<()> {
+        if !(v >= 0.0 && v < u32::MAX as f64 && v.fract() == 0.0) {
+            return Err(GgsError::in_file(
+                path,
+                format!("{at}: face vertex index {v} is not a valid index"),
+            ));
+        }
+        self.polygon.push(v as u32);
+        Ok(())
+    }
+
+    fn end_polygon(&mut self) {
+        for k in 1..self.polygon.len().saturating_sub(1) {
+            self.triangles
+                .push([self.polygon[0], self.polygon[k], self.polygon[k + 1]]);
+        }
+        self.polygon.clear();
+    }
+}
+
+/// Read a PLY file as a mesh: its vertices and the `face` element's `vertex_indices` (or
+/// `vertex_index`) polygons, fan-triangulated. A file without faces gives no triangles.
+pub fn parse_ply_mesh(path: &Path, bytes: &[u8]) -> Result<crate::io::mesh::Mesh> {
+    let h = parse_header(path, bytes)?;
+    let vertices = parse_ply(path, bytes)?;
+    let face = h.elements.iter().enumerate().find_map(|(ei, e)| {
+        (e.name == "face").then(|| {
+            e.props.iter().position(|p| {
+                matches!(p, Property::List(_, _, n) if n == "vertex_indices" || n == "vertex_index")
+            })
+            .map(|pi| (ei, pi))
+        })?
+    });
+    let mut mesh = crate::io::mesh::Mesh {
+        vertices,
+        groups: vec![String::new()],
+        ..Default::default()
+    };
+    let Some((element, property)) = face else {
+        return Ok(mesh);
+    };
+    let vi = h
+        .elements
+        .iter()
+        .position(|e| e.name == "vertex")
+        .unwrap_or(0);
+    let last = element.max(vi);
+    let mut sink = Some(FaceSink {
+        element,
+        property,
+        triangles: Vec::new(),
+        polygon: Vec::new(),
+    });
+    let xyz = [usize::MAX; 3];
+    match h.encoding {
+        Encoding::Ascii => read_ascii(path, bytes, &h, last, &xyz, &mut sink)?,
+        Encoding::BinaryLe => read_binary(path, bytes, &h, last, &xyz, true, &mut sink)?,
+        Encoding::BinaryBe => read_binary(path, bytes, &h, last, &xyz, false, &mut sink)?,
+    };
+    let triangles = sink.map(|s| s.triangles).unwrap_or_default();
+    let n = mesh.vertices.len() as u32;
+    if let Some((k, t)) = triangles
+        .iter()
+        .enumerate()
+        .find(|(_, t)| t.iter().any(|&v| v >= n))
+    {
+        return Err(GgsError::in_file(
+            path,
+            format!("face triangle {k} uses vertex {t:?}, but there are only {n} vertices"),
+        ));
+    }
+    mesh.triangle_group = vec![0; triangles.len()];
+    mesh.triangles = triangles;
+    Ok(mesh)
+}
+
+/// Read the rows of elements `0..=vi`; the scalar properties at `xyz` of element `vi` are
+/// returned as points (`usize::MAX`: none), and faces go to `faces` if given.
 fn read_ascii(
     path: &Path,
     bytes: &[u8],
     h: &Header,
     vi: usize,
     xyz: &[usize],
+    faces: &mut Option<FaceSink>,
 ) -> Result<Vec<Point>> {
     let text = &bytes[h.data_start..];
     let mut lines = text
@@ -244,7 +334,8 @@ fn read_ascii(
                     ),
                 )
             })?;
-            if ei != vi {
+            let collect_faces = faces.as_ref().is_some_and(|f| f.element == ei);
+            if ei != vi && !collect_faces {
                 continue;
             }
             let line_no = h.lines + li + 1;
@@ -268,19 +359,37 @@ fn read_ascii(
                 match prop {
                     Property::Scalar(_, name) => {
                         let v = next(name)?;
-                        if let Some(d) = xyz.iter().position(|&x| x == pi) {
-                            vals[d] = v;
+                        if ei == vi {
+                            if let Some(d) = xyz.iter().position(|&x| x == pi) {
+                                vals[d] = v;
+                            }
                         }
                     }
                     Property::List(_, _, name) => {
                         let n = next(name)?;
-                        for _ in 0..(n.max(0.0) as usize) {
-                            next(name)?;
+                        let sink = faces
+                            .as_mut()
+                            .filter(|f| f.element == ei && f.property == pi);
+                        match sink {
+                            Some(f) => {
+                                for _ in 0..(n.max(0.0) as usize) {
+                                    let v = next(name)?;
+                                    f.push_index(path, v, &format!("line {line_no}"))?;
+                                }
+                                f.end_polygon();
+                            }
+                            None => {
+                                for _ in 0..(n.max(0.0) as usize) {
+                                    next(name)?;
+                                }
+                            }
                         }
                     }
                 }
             }
-            out.push(vals);
+            if ei == vi {
+                out.push(vals);
+            }
         }
     }
     Ok(out)
@@ -293,6 +402,7 @@ fn read_binary(
     vi: usize,
     xyz: &[usize],
     little: bool,
+    faces: &mut Option<FaceSink>,
 ) -> Result<Vec<Point>> {
     let mut pos = h.data_start;
     let truncated = |pos: usize, el: &Element, row: usize| {
@@ -330,7 +440,8 @@ fn read_binary(
                     .min(bytes.len().saturating_sub(pos) / min_row.max(1)),
             );
         }
-        if let (Some(size), true) = (fixed, ei != vi) {
+        let collect_faces = faces.as_ref().is_some_and(|f| f.element == ei);
+        if let (Some(size), true) = (fixed, ei != vi && !collect_faces) {
             let len = size
                 .checked_mul(el.count)
                 .filter(|&l| pos + l <= bytes.len())
@@ -367,9 +478,21 @@ fn read_binary(
                                 format!("invalid list length {n}"),
                             ));
                         }
-                        pos += s + n as usize * it.size();
+                        let start = pos + s;
+                        pos = start + n as usize * it.size();
                         if pos > bytes.len() {
                             return Err(truncated(pos, el, row));
+                        }
+                        if let Some(f) = faces
+                            .as_mut()
+                            .filter(|f| f.element == ei && f.property == pi)
+                        {
+                            for k in 0..n as usize {
+                                let at = start + k * it.size();
+                                let v = it.decode(&bytes[at..at + it.size()], little);
+                                f.push_index(path, v, &format!("byte {at}"))?;
+                            }
+                            f.end_polygon();
                         }
                     }
                 }
@@ -557,5 +680,43 @@ mod tests {
             assert_eq!(back, pts);
         }
         std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn mesh_faces_ascii_and_binary() {
+        let p = Path::new("m.ply");
+        // A quad (fan-triangulated) and a triangle, with a vertex colour and a face flag.
+        let ascii = "ply\nformat ascii 1.0\nelement vertex 5\nproperty float x\nproperty float y\nproperty float z\nproperty uchar red\nelement face 2\nproperty uchar flags\nproperty list uchar int vertex_indices\nend_header\n0 0 0 1\n1 0 0 1\n1 1 0 1\n0 1 0 1\n0 0 1 1\n7 4 0 1 2 3\n7 3 0 1 4\n";
+        let m = parse_ply_mesh(p, ascii.as_bytes()).unwrap();
+        assert_eq!(m.vertices.len(), 5);
+        assert_eq!(m.triangles, vec![[0, 1, 2], [0, 2, 3], [0, 1, 4]]);
+        assert_eq!(m.triangle_group, vec![0; 3]);
+        for little in [true, false] {
+            let fmt = if little { "binary_little_endian" } else { "binary_big_endian" };
+            let mut b = format!("ply\nformat {fmt} 1.0\nelement vertex 4\nproperty double x\nproperty double y\nproperty double z\nelement face 1\nproperty list uchar uint vertex_index\nend_header\n").into_bytes();
+            for v in [[0.0f64, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]] {
+                for c in v {
+                    b.extend(if little { c.to_le_bytes() } else { c.to_be_bytes() });
+                }
+            }
+            b.push(4);
+            for i in [3u32, 2, 1, 0] {
+                b.extend(if little { i.to_le_bytes() } else { i.to_be_bytes() });
+            }
+            let m = parse_ply_mesh(p, &b).unwrap();
+            assert_eq!(m.triangles, vec![[3, 2, 1], [3, 1, 0]]);
+            // A face index past the vertices is an error naming the face.
+            let n = b.len();
+            b[n - 4..].copy_from_slice(&if little { 9u32.to_le_bytes() } else { 9u32.to_be_bytes() });
+            let e = parse_ply_mesh(p, &b).unwrap_err().to_string();
+            assert!(e.contains("vertex") && e.contains("only 4 vertices"), "{e}");
+        }
+        // No face element: a mesh without triangles.
+        let cloud = "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty float z\nend_header\n1 2 3\n";
+        assert!(parse_ply_mesh(p, cloud.as_bytes()).unwrap().triangles.is_empty());
+        // A negative index is refused with its line.
+        let bad = ascii.replace("7 3 0 1 4", "7 3 0 -1 4");
+        let e = parse_ply_mesh(p, bad.as_bytes()).unwrap_err().to_string();
+        assert!(e.contains("line 18") && e.contains("-1"), "{e}");
     }
 }
