@@ -48,6 +48,9 @@ pub struct BenchArgs {
     /// Worker threads per pair (0: all cores).
     #[arg(long, default_value_t = 0)]
     pub threads: usize,
+    /// Exit with an error (status 2) if the recall is below this, in percent: a gate for CI.
+    #[arg(long, value_name = "PCT")]
+    pub min_recall: Option<f64>,
     /// Print the summary as JSON instead of Markdown.
     #[arg(long)]
     pub json: bool,
@@ -147,6 +150,16 @@ pub fn run(args: BenchArgs) -> Result<()> {
             outcome.resumed,
             out.display()
         );
+    }
+    if let Some(min) = args.min_recall {
+        let recall = outcome.summary.recall * 100.0;
+        if recall < min {
+            bail!(
+                "recall {recall:.2} % is below --min-recall {min} % ({} of {} pairs)",
+                outcome.summary.successes,
+                outcome.summary.pairs
+            );
+        }
     }
     Ok(())
 }

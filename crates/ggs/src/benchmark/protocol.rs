@@ -8,7 +8,7 @@
 //! | `3dmatch` | `<scene>/cloud_bin_<k>.ply` | shipped (gt.log of each scene) | 1623 gt pairs, PREDATOR overlap ≥ 0.30 → 1523 |
 //! | `kitti` | `<seq>/velodyne/<frame:06>.bin` | shipped | 555 (target = frame0, source = frame1) |
 //! | `eth` | `<scene>/Hokuyo_<k>.ply` | the user's `<scene>/gt.log` | overlap ≥ 0.30 both ways → 713 |
-//! | `fpv1` | `<scan>.ply` + `visible/<scan>/<view>.txt` | shipped | 1724 |
+//! | `fpv1` | `<scan>.ply` (or `scans/<scan>.ply`) + `visible/<scan>/<view>.txt` | shipped | 1724 |
 //!
 //! In every protocol the ground truth `T` maps the source into the target's frame.
 
@@ -419,8 +419,15 @@ fn fpv1_pairs(data: &Path) -> Result<Vec<BenchPair>> {
             };
             let (scan, vi, vj) = (f[0], view(f[1])?, view(f[2])?);
             let t = matrix(FILE, line, &f[4..20])?;
+            // `ggs partial --fpv1` writes the scans under `scans/`; a FAUST folder has them
+            // at its top.
+            let scans = if data.join("scans").is_dir() {
+                data.join("scans")
+            } else {
+                data.to_path_buf()
+            };
             let visible = |v: u32| CloudRef::Visible {
-                cloud: data.join(format!("{scan}.ply")),
+                cloud: scans.join(format!("{scan}.ply")),
                 indices: data.join("visible").join(scan).join(format!("{v}.txt")),
                 transform: None,
             };

@@ -692,28 +692,52 @@ mod tests {
         assert_eq!(m.triangles, vec![[0, 1, 2], [0, 2, 3], [0, 1, 4]]);
         assert_eq!(m.triangle_group, vec![0; 3]);
         for little in [true, false] {
-            let fmt = if little { "binary_little_endian" } else { "binary_big_endian" };
+            let fmt = if little {
+                "binary_little_endian"
+            } else {
+                "binary_big_endian"
+            };
             let mut b = format!("ply\nformat {fmt} 1.0\nelement vertex 4\nproperty double x\nproperty double y\nproperty double z\nelement face 1\nproperty list uchar uint vertex_index\nend_header\n").into_bytes();
-            for v in [[0.0f64, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]] {
+            for v in [
+                [0.0f64, 0.0, 0.0],
+                [1.0, 0.0, 0.0],
+                [0.0, 1.0, 0.0],
+                [0.0, 0.0, 1.0],
+            ] {
                 for c in v {
-                    b.extend(if little { c.to_le_bytes() } else { c.to_be_bytes() });
+                    b.extend(if little {
+                        c.to_le_bytes()
+                    } else {
+                        c.to_be_bytes()
+                    });
                 }
             }
             b.push(4);
             for i in [3u32, 2, 1, 0] {
-                b.extend(if little { i.to_le_bytes() } else { i.to_be_bytes() });
+                b.extend(if little {
+                    i.to_le_bytes()
+                } else {
+                    i.to_be_bytes()
+                });
             }
             let m = parse_ply_mesh(p, &b).unwrap();
             assert_eq!(m.triangles, vec![[3, 2, 1], [3, 1, 0]]);
             // A face index past the vertices is an error naming the face.
             let n = b.len();
-            b[n - 4..].copy_from_slice(&if little { 9u32.to_le_bytes() } else { 9u32.to_be_bytes() });
+            b[n - 4..].copy_from_slice(&if little {
+                9u32.to_le_bytes()
+            } else {
+                9u32.to_be_bytes()
+            });
             let e = parse_ply_mesh(p, &b).unwrap_err().to_string();
             assert!(e.contains("vertex") && e.contains("only 4 vertices"), "{e}");
         }
         // No face element: a mesh without triangles.
         let cloud = "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty float z\nend_header\n1 2 3\n";
-        assert!(parse_ply_mesh(p, cloud.as_bytes()).unwrap().triangles.is_empty());
+        assert!(parse_ply_mesh(p, cloud.as_bytes())
+            .unwrap()
+            .triangles
+            .is_empty());
         // A negative index is refused with its line.
         let bad = ascii.replace("7 3 0 1 4", "7 3 0 -1 4");
         let e = parse_ply_mesh(p, bad.as_bytes()).unwrap_err().to_string();

@@ -1,0 +1,27 @@
+#!/usr/bin/env bash
+# Generate the human partial-view benchmark (issue 5) and register it with ggs bench.
+#
+#   scripts/partial_benchmark.sh [PRESET [OUT_DIR [MIN_RECALL]]]
+#
+# PRESET: fpv1 (default), fpv1-code, fp-{r,t,o}-{e,m,h}. Writes OUT_DIR/data (views, pairs,
+# manifest) and OUT_DIR/run (pairs.csv, results.json, summary.md); prints both summaries.
+# Coarse search with the full-SO(3) hopf15-dedup set + GICP; success at 10° and 3 cm.
+# MIN_RECALL (percent) makes the script fail below it.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+preset=${1:-fpv1}
+out=${2:-partial-$preset}
+min_recall=${3:-0}
+threads=${GGS_THREADS:-2}
+points=${GGS_POINTS:-100000}  # points sampled per mesh
+if [ -n "${GGS_BIN:-}" ]; then
+    ggs=$GGS_BIN  # a prebuilt binary
+else
+    cargo build --release -q -p ggs-cli
+    ggs=target/release/ggs
+fi
+rm -rf "$out/data" "$out/run"
+"$ggs" partial --inputs-list benchmarks/human_meshes.txt --preset "$preset" --seed 2022 \
+    --points "$points" --threads "$threads" --out "$out/data" --quiet | grep -v '^$' | head -9
+"$ggs" bench manifest "$out/data/pairs.tsv" --rotations hopf15-dedup --max-rre 10 --max-rte 0.03 \
+    --threads "$threads" --out "$out/run" --quiet --min-recall "$min_recall"
