@@ -40,6 +40,9 @@ pub struct PartialArgs {
     /// Sample meshes to this mean spacing instead (in metres after --scale).
     #[arg(long, value_name = "S")]
     pub spacing: Option<f64>,
+    /// Use a mesh's vertices as its points (no surface sampling), e.g. FAUST scans.
+    #[arg(long, conflicts_with_all = ["points", "spacing"])]
+    pub vertices: bool,
     /// Multiply coordinates by this (0.1 for decimetres, 0.001 for millimetres).
     #[arg(long, default_value_t = 1.0)]
     pub scale: f64,
@@ -171,6 +174,7 @@ fn config(args: &PartialArgs) -> Result<GeneratorConfig> {
             cameras,
         },
         sample,
+        mesh_vertices: args.vertices,
         flip_factor: positive("flip-factor", args.flip_factor)?,
         voxel: positive("voxel", args.voxel)?,
         threads: args.threads,

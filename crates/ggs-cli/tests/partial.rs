@@ -167,3 +167,14 @@ fn bad_arguments_are_clear_errors() {
     assert!(stderr(&o).contains("none of the 1 scans"), "{}", stderr(&o));
     std::fs::remove_dir_all(out).unwrap();
 }
+
+#[test]
+fn vertices_instead_of_samples() {
+    let out = tmp("vertices");
+    let o = ggs(&["partial", &body(), "--vertices", "--out", s(&out), "--json"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let summary: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(summary["scans"][0]["points"], 6890);
+    assert_eq!(summary["scans"][0]["sampled_from_mesh"], false);
+    std::fs::remove_dir_all(out).unwrap();
+}

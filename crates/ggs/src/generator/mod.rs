@@ -84,6 +84,9 @@ pub struct GeneratorConfig {
     pub views: ViewConfig,
     /// Sampling of meshes (point clouds are used as they are).
     pub sample: SampleSize,
+    /// Use a mesh's vertices as its points instead of sampling its surface (a FAUST scan
+    /// stored as a PLY mesh, used as the published FPv1 used it).
+    pub mesh_vertices: bool,
     /// Flip radius factor: R = factor × the scan's bounding-box diagonal (1000 in SPEC §9).
     pub flip_factor: f64,
     /// Voxel size written to the manifest (6 cm for human bodies).
@@ -99,6 +102,7 @@ impl Default for GeneratorConfig {
             overlap: None,
             views: ViewConfig::default(),
             sample: SampleSize::Count(100_000),
+            mesh_vertices: false,
             flip_factor: 1000.0,
             voxel: 0.06,
             threads: 0,
@@ -157,7 +161,7 @@ pub fn load_scan(input: &ScanInput, cfg: &GeneratorConfig) -> Result<(Vec<Point>
     }
     let fmt = Format::from_extension(path);
     let mesh: Option<Mesh> = match fmt {
-        Some(Format::Obj) | Some(Format::Stl) | Some(Format::Ply) => {
+        Some(Format::Obj) | Some(Format::Stl) | Some(Format::Ply) if !cfg.mesh_vertices => {
             let bytes = std::fs::read(path).map_err(|e| GgsError::io(path, e))?;
             let m = match fmt {
                 Some(Format::Obj) => io::mesh::parse_obj(path, &bytes)?,
@@ -171,7 +175,11 @@ pub fn load_scan(input: &ScanInput, cfg: &GeneratorConfig) -> Result<(Vec<Point>
     if input.group.is_some() && mesh.is_none() {
         return Err(GgsError::in_file(
             path,
-            "a group was asked for, but the file is not a mesh with faces",
+            if cfg.mesh_vertices {
+                "a group cannot be selected when a mesh's vertices are used as they are"
+            } else {
+                "a group was asked for, but the file is not a mesh with faces"
+            },
         ));
     }
     let scale = |p: Point| p.map(|c| c * input.scale);
