@@ -245,6 +245,21 @@ mod tests {
     }
 
     #[test]
+    fn the_three_easy_variants_are_one_benchmark() {
+        // fp-r-e, fp-t-e and fp-o-e all sit at E on every axis: same draws, same band.
+        let e = [
+            Preset::Fp(Varies::Rotation, Level::Easy),
+            Preset::Fp(Varies::Translation, Level::Easy),
+            Preset::Fp(Varies::Overlap, Level::Easy),
+        ];
+        for seed in 0..50 {
+            let d: Vec<_> = e.iter().map(|p| p.draw(&mut Rng::new(seed))).collect();
+            assert!(d[0] == d[1] && d[1] == d[2]);
+        }
+        assert!(e[0].overlap() == e[1].overlap() && e[1].overlap() == e[2].overlap());
+    }
+
+    #[test]
     fn overlap_bands() {
         let e = Preset::Fpv1.overlap();
         assert!(e.contains(60.0) && e.contains(100.0) && !e.contains(59.99));
