@@ -1,24 +1,13 @@
 //! `ggs bench` end to end, on a manifest of the bundled PCL bunny pair.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod common;
 
-fn ggs(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_ggs"))
-        .args(args)
-        .output()
-        .expect("run ggs")
-}
+use common::{ggs, s, tmp_dir};
+use std::path::{Path, PathBuf};
+use std::process::Output;
 
 fn tmp(tag: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("ggs-bench-cli-{tag}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
+    tmp_dir("ggs-bench-cli", tag, true)
 }
 
 /// A manifest with the bundled pair both ways (absolute paths).

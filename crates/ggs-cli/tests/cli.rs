@@ -1,19 +1,13 @@
 //! End-to-end tests of the `ggs` binary on the bundled PCL bunny pair.
 
+mod common;
+
+use common::{data, ggs, s, tmp_dir};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-fn data(name: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../../tests/data")
-        .join(name)
-}
-
-fn ggs(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_ggs"))
-        .args(args)
-        .output()
-        .expect("run ggs")
+fn tmp(tag: &str) -> PathBuf {
+    tmp_dir("ggs-cli", tag, true)
 }
 
 /// `ggs register bun0.pcd bun4.pcd --voxel 0.006` on the bundled pair, plus `extra`.
@@ -22,16 +16,6 @@ fn register_pair(extra: &[&str]) -> Output {
     let mut args = vec!["register", s(&b0), s(&b4), "--voxel", "0.006"];
     args.extend_from_slice(extra);
     ggs(&args)
-}
-
-fn tmp(tag: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("ggs-cli-{tag}-{}", std::process::id()));
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
 }
 
 fn matrix_from_text(text: &str) -> Vec<f64> {

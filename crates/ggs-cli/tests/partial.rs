@@ -1,19 +1,13 @@
 //! `ggs partial` end to end on the bundled SMPL body.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod common;
 
-fn ggs(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_ggs"))
-        .args(args)
-        .output()
-        .expect("run ggs")
-}
+use common::{ggs, s, tmp_dir};
+use std::path::PathBuf;
+use std::process::Output;
 
 fn tmp(tag: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("ggs-partial-cli-{tag}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    d
+    tmp_dir("ggs-partial-cli", tag, false)
 }
 
 fn body() -> String {
@@ -23,10 +17,6 @@ fn body() -> String {
         .unwrap()
         .display()
         .to_string()
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
 }
 
 fn stderr(o: &Output) -> String {

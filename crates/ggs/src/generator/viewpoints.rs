@@ -16,43 +16,7 @@ use crate::cloud::{bounds, Point};
 /// unnormalised, at length √(1+φ²)) and pushed to the unit sphere; every vertex is normalised
 /// at the end. 0 → 12, 1 → 42, 2 → 162 vertices.
 pub fn fpv1_icosphere(levels: u32) -> Vec<[f64; 3]> {
-    let p = (1.0 + 5f64.sqrt()) / 2.0;
-    let mut v: Vec<[f64; 3]> = vec![
-        [-1.0, p, 0.0],
-        [1.0, p, 0.0],
-        [-1.0, -p, 0.0],
-        [1.0, -p, 0.0],
-        [0.0, -1.0, p],
-        [0.0, 1.0, p],
-        [0.0, -1.0, -p],
-        [0.0, 1.0, -p],
-        [p, 0.0, -1.0],
-        [p, 0.0, 1.0],
-        [-p, 0.0, -1.0],
-        [-p, 0.0, 1.0],
-    ];
-    let mut faces: Vec<[usize; 3]> = vec![
-        [0, 11, 5],
-        [0, 5, 1],
-        [0, 1, 7],
-        [0, 7, 10],
-        [0, 10, 11],
-        [1, 5, 9],
-        [5, 11, 4],
-        [11, 10, 2],
-        [10, 7, 6],
-        [7, 1, 8],
-        [3, 9, 4],
-        [3, 4, 2],
-        [3, 2, 6],
-        [3, 6, 8],
-        [3, 8, 9],
-        [5, 4, 9],
-        [2, 4, 11],
-        [6, 2, 10],
-        [8, 6, 7],
-        [9, 8, 1],
-    ];
+    let (mut v, mut faces) = crate::rotations::icosphere::icosahedron();
     for _ in 0..levels {
         let mut split = std::collections::HashMap::new();
         let mut next = Vec::with_capacity(faces.len() * 4);

@@ -13,10 +13,11 @@ pub fn icosphere(levels: u32) -> Vec<Vector3<f64>> {
     vertices
 }
 
-/// Vertices and triangles of the subdivided icosahedron.
-pub fn icosphere_mesh(levels: u32) -> (Vec<Vector3<f64>>, Vec<[usize; 3]>) {
+/// The regular icosahedron: vertices `(±1, ±φ, 0), (0, ±1, ±φ), (±φ, 0, ±1)` (not normalised,
+/// length √(1 + φ²)) and its 20 faces, counter-clockwise from outside, in the usual order.
+pub fn icosahedron() -> (Vec<[f64; 3]>, Vec<[usize; 3]>) {
     let p = (1.0 + 5f64.sqrt()) / 2.0;
-    let mut v: Vec<Vector3<f64>> = [
+    let vertices = vec![
         [-1.0, p, 0.0],
         [1.0, p, 0.0],
         [-1.0, -p, 0.0],
@@ -29,11 +30,8 @@ pub fn icosphere_mesh(levels: u32) -> (Vec<Vector3<f64>>, Vec<[usize; 3]>) {
         [p, 0.0, 1.0],
         [-p, 0.0, -1.0],
         [-p, 0.0, 1.0],
-    ]
-    .iter()
-    .map(|a| Vector3::new(a[0], a[1], a[2]).normalize())
-    .collect();
-    let mut faces: Vec<[usize; 3]> = vec![
+    ];
+    let faces = vec![
         [0, 11, 5],
         [0, 5, 1],
         [0, 1, 7],
@@ -55,6 +53,16 @@ pub fn icosphere_mesh(levels: u32) -> (Vec<Vector3<f64>>, Vec<[usize; 3]>) {
         [8, 6, 7],
         [9, 8, 1],
     ];
+    (vertices, faces)
+}
+
+/// Vertices and triangles of the subdivided icosahedron.
+pub fn icosphere_mesh(levels: u32) -> (Vec<Vector3<f64>>, Vec<[usize; 3]>) {
+    let (raw, mut faces) = icosahedron();
+    let mut v: Vec<Vector3<f64>> = raw
+        .iter()
+        .map(|a| Vector3::new(a[0], a[1], a[2]).normalize())
+        .collect();
     for _ in 0..levels {
         let mut mid: HashMap<(usize, usize), usize> = HashMap::new();
         let mut next = Vec::with_capacity(faces.len() * 4);
