@@ -1,0 +1,104 @@
+"""Type stubs of the native module (the public names are re-exported by ``ggs``)."""
+
+from os import PathLike
+from typing import Any, Dict, List, Optional, Sequence, Union
+
+import numpy as np
+import numpy.typing as npt
+
+Points = Union[npt.NDArray[np.float32], npt.NDArray[np.float64]]
+Matrix4 = npt.NDArray[np.float64]
+StrPath = Union[str, "PathLike[str]"]
+
+__version__: str
+ROTATION_SETS: List[str]
+
+class Result:
+    """The outcome of :func:`register` or :func:`refine`."""
+
+    @property
+    def transformation(self) -> Matrix4:
+        """Final 4×4 float64 transform, ``p_target = T · p_source``."""
+    @property
+    def coarse_transformation(self) -> Optional[Matrix4]:
+        """The coarse search's transform (None after :func:`refine`)."""
+    @property
+    def fitness(self) -> Optional[float]:
+        """Share of source points matched within the correspondence distance after refinement."""
+    @property
+    def fitness_target(self) -> Optional[float]:
+        """Share of target points matched after refinement."""
+    @property
+    def inlier_rmse(self) -> Optional[float]:
+        """RMS distance of the inlier correspondences, in the clouds' units."""
+    @property
+    def score(self) -> Optional[int]:
+        """The coarse search's exact integer score."""
+    @property
+    def ambiguity(self) -> Optional[float]:
+        """Runner-up / best match score over distinct rotations; near 1 means ambiguous."""
+    @property
+    def rotation_index(self) -> Optional[int]:
+        """Index of the best rotation in the rotation set."""
+    @property
+    def voxel(self) -> Optional[float]:
+        """Voxel size used by the coarse search."""
+    @property
+    def converged(self) -> Optional[bool]:
+        """Whether the refinement converged."""
+    @property
+    def timings(self) -> Dict[str, float]:
+        """Milliseconds: coarse_ms, target_ms, extents_ms, search_ms, refine_ms, total_ms."""
+    @property
+    def hypotheses(self) -> List[Dict[str, Any]]:
+        """The ``top_k`` best distinct coarse hypotheses, best first."""
+    @property
+    def report(self) -> Optional[Dict[str, Any]]:
+        """The refinement's quality report (fitness both ways, RMSE, eigenvalues, ...)."""
+
+def register(
+    source: Points,
+    target: Points,
+    voxel: Optional[float] = None,
+    rotations: str = "limited15",
+    refine: str = "gicp",
+    threads: Optional[int] = None,
+    top_k: int = 1,
+) -> Result:
+    """Register ``source`` onto ``target`` without an initial guess.
+
+    voxel: grid size in the clouds' units (default: the target's longest side / 32).
+    rotations: a built-in rotation set (see ``ROTATION_SETS``); ``limited15`` covers
+    |α|, |γ| ≤ 90°, use ``hopf15-dedup`` or ``full15`` for arbitrary rotations.
+    refine: ``gicp``, ``p2plane``, ``p2p`` or ``none``. threads: default all cores; the
+    result does not depend on it. top_k: distinct hypotheses to report.
+    Raises ValueError for arrays that are not (N, 3) float32/float64 or hold NaN.
+    """
+
+def refine(
+    source: Points,
+    target: Points,
+    init: Matrix4,
+    method: str = "gicp",
+    max_distance: Optional[float] = None,
+    distance_quantile: float = 0.25,
+    max_iterations: int = 500,
+    neighbors: int = 20,
+    threads: Optional[int] = None,
+) -> Result:
+    """Refine an initial 4×4 transform by ICP (``gicp``, ``p2plane`` or ``p2p``)."""
+
+def read_point_cloud(path: StrPath, format: Optional[str] = None) -> npt.NDArray[np.float64]:
+    """Read any format ggs reads (PLY, PCD, XYZ/TXT/CSV/PTS, NPY, KITTI .bin, LAS/LAZ, OBJ, STL)."""
+
+def write_point_cloud(path: StrPath, points: Points, format: Optional[str] = None) -> None:
+    """Write an (N, 3) array atomically; the format follows the extension unless given."""
+
+def rotation_set(name: str) -> npt.NDArray[np.float64]:
+    """A built-in rotation set as an (N, 3, 3) float64 array."""
+
+def rre(estimate: Matrix4, truth: Matrix4) -> float:
+    """Relative rotation error, degrees."""
+
+def rte(estimate: Matrix4, truth: Matrix4) -> float:
+    """Relative translation error, in the clouds' units."""

@@ -1,0 +1,1 @@
+from ._ggs import rre as rre, rte as rte

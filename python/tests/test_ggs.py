@@ -1,0 +1,204 @@
+"""Tests of the ggs Python package (run after installing the wheel: pytest python/tests)."""
+
+import json
+import os
+import subprocess
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import ggs
+
+ROOT = Path(__file__).resolve().parents[2]
+DATA = ROOT / "tests" / "data"
+SHARED = Path(os.environ.get("GGS_SHARED", ROOT.parent / "shared"))
+
+
+def ggs_binary():
+    exe = Path(os.environ.get("GGS_BIN", ROOT / "target" / "release" / "ggs"))
+    if not exe.exists():
+        pytest.skip(f"{exe} not built (cargo build --release)")
+    return exe
+
+
+def bunny_small():
+    return ggs.read_point_cloud(DATA / "bun0.pcd"), ggs.read_point_cloud(DATA / "bun4.pcd")
+
+
+def test_read_gives_float64_n_by_3():
+    pts = ggs.read_point_cloud(DATA / "bun0.pcd")
+    assert pts.dtype == np.float64 and pts.ndim == 2 and pts.shape[1] == 3
+    assert pts.shape[0] == 397
+
+
+@pytest.mark.parametrize("ext", ["ply", "pcd", "npy", "xyz", "las"])
+def test_write_read_round_trip(tmp_path, ext):
+    rng = np.random.default_rng(1)
+    pts = rng.uniform(-2, 2, size=(500, 3)).round(3)
+    path = tmp_path / f"cloud.{ext}"
+    ggs.write_point_cloud(path, pts)
+    back = ggs.read_point_cloud(path)
+    if ext == "las":  # stored as integers with a power-of-ten scale
+        np.testing.assert_allclose(back, pts, atol=1e-9)
+    else:
+        np.testing.assert_array_equal(back, pts)
+    # float32 input is written as its float64 values.
+    p32 = pts.astype(np.float32)
+    ggs.write_point_cloud(tmp_path / "f32.ply", p32)
+    np.testing.assert_array_equal(ggs.read_point_cloud(tmp_path / "f32.ply"), p32.astype(np.float64))
+
+
+@pytest.mark.parametrize(
+    "bad, message",
+    [
+        (np.zeros((10, 3), dtype=np.int64), "dtype int64"),
+        (np.zeros((10, 2)), "shape (10, 2)"),
+        (np.zeros(30), "shape (30,)"),
+        (np.zeros((0, 3)), "no point"),
+        ([[0.0, 0.0, 0.0]] * 10, "float32 or float64"),
+    ],
+)
+def test_bad_arrays_are_value_errors(bad, message):
+    good = np.random.default_rng(0).uniform(size=(50, 3))
+    with pytest.raises(ValueError, match="source") as e:
+        ggs.register(bad, good, voxel=0.1)
+    assert message in str(e.value)
+    with pytest.raises(ValueError, match="target"):
+        ggs.register(good, bad, voxel=0.1)
+
+
+def test_nan_rows_and_bad_options():
+    a = np.random.default_rng(0).uniform(size=(50, 3))
+    b = a.copy()
+    b[7, 1] = np.nan
+    with pytest.raises(ValueError, match="row 7"):
+        ggs.register(a, b, voxel=0.1)
+    with pytest.raises(ValueError, match="unknown rotation set"):
+        ggs.register(a, a, voxel=0.1, rotations="nope")
+    with pytest.raises(ValueError, match="unknown method"):
+        ggs.register(a, a, voxel=0.1, refine="icp9")
+    with pytest.raises(ValueError, match="voxel must be positive"):
+        ggs.register(a, a, voxel=-1.0)
+    with pytest.raises(OSError):
+        ggs.read_point_cloud("/nonexistent/cloud.ply")
+
+
+def test_register_bundled_pair_and_result_fields():
+    source, target = bunny_small()
+    truth = np.loadtxt(DATA / "bun0_to_bun4_groundtruth.txt")
+    r = ggs.register(source, target, voxel=0.006, top_k=3)
+    assert r.transformation.shape == (4, 4) and r.transformation.dtype == np.float64
+    assert ggs.metrics.rre(r.transformation, truth) < 1.0
+    assert ggs.metrics.rte(r.transformation, truth) < 0.002
+    assert isinstance(r.score, int) and r.rotation_index >= 0 and 0 <= r.ambiguity <= 1
+    assert 0 < r.fitness <= 1 and r.inlier_rmse > 0 and r.converged
+    assert len(r.hypotheses) == 3 and r.hypotheses[0]["rotation_index"] == r.rotation_index
+    assert {"coarse_ms", "refine_ms", "total_ms"} <= set(r.timings)
+    assert r.report["method"] == "gicp"
+    assert "ggs.Result(" in repr(r) and "transformation" in repr(r)
+    # float32 input of the same values gives the same answer.
+    r32 = ggs.register(source.astype(np.float32).astype(np.float64), target, voxel=0.006)
+    r32b = ggs.register(source.astype(np.float32), target, voxel=0.006)
+    np.testing.assert_array_equal(r32.transformation, r32b.transformation)
+    # refine() from the coarse pose reproduces register()'s refinement exactly.
+    again = ggs.refine(source, target, r.coarse_transformation)
+    np.testing.assert_array_equal(again.transformation, r.transformation)
+    assert again.score is None and again.fitness == r.fitness
+
+
+def test_same_answer_on_any_thread_count():
+    source, target = bunny_small()
+    a = ggs.register(source, target, voxel=0.006, threads=1)
+    b = ggs.register(source, target, voxel=0.006, threads=2)
+    np.testing.assert_array_equal(a.transformation, b.transformation)
+
+
+def test_rotation_sets_and_metrics():
+    for name in ggs.ROTATION_SETS:
+        rs = ggs.rotation_set(name)
+        assert rs.ndim == 3 and rs.shape[1:] == (3, 3)
+    rs = ggs.rotation_set("limited15")
+    assert rs.shape == (1886, 3, 3)
+    np.testing.assert_allclose(rs @ rs.transpose(0, 2, 1), np.broadcast_to(np.eye(3), rs.shape), atol=1e-12)
+    with pytest.raises(ValueError):
+        ggs.rotation_set("nope")
+    t = np.eye(4)
+    c, s = np.cos(np.radians(30)), np.sin(np.radians(30))
+    t2 = np.array([[c, -s, 0, 0.3], [s, c, 0, 0], [0, 0, 1, 0.4], [0, 0, 0, 1]])
+    assert ggs.metrics.rre(t2, t) == pytest.approx(30.0)
+    assert ggs.metrics.rte(t2, t) == pytest.approx(0.5)
+    with pytest.raises(ValueError, match="not a rotation"):
+        ggs.metrics.rre(np.diag([2.0, 1, 1, 1]), t)
+
+
+def test_gil_is_released_during_registration():
+    source, target = bunny_small()
+    ticks = []
+    done = threading.Event()
+
+    def count():
+        while not done.is_set():
+            ticks.append(time.perf_counter())
+            time.sleep(0.001)
+
+    th = threading.Thread(target=count)
+    th.start()
+    t0 = time.perf_counter()
+    ggs.register(source, target, voxel=0.003, rotations="hopf15-dedup", threads=1)
+    t1 = time.perf_counter()
+    done.set()
+    th.join()
+    during = [t for t in ticks if t0 < t < t1]
+    # With the GIL held the other thread could not tick at all during the call.
+    assert t1 - t0 > 0.1
+    assert len(during) > 0.3 * (t1 - t0) / 0.002, (len(during), t1 - t0)
+
+
+def test_ctrl_c_interrupts_a_long_search():
+    import _thread
+
+    source, target = bunny_small()
+    timer = threading.Timer(0.3, _thread.interrupt_main)
+    t0 = time.perf_counter()
+    timer.start()
+    with pytest.raises(KeyboardInterrupt):
+        # Far longer than 0.3 s on any machine.
+        for _ in range(50):
+            ggs.register(source, target, voxel=0.002, rotations="full15", threads=1)
+    assert time.perf_counter() - t0 < 30
+
+
+def test_equals_the_cli_bit_for_bit():
+    pair = SHARED / "data" / "stanford_bunny"
+    if not (pair / "bun045.ply").exists():
+        pytest.skip(f"{pair} not found (../shared beside the checkout)")
+    exe = ggs_binary()
+    src, tgt = pair / "bun045.ply", pair / "bun000.ply"
+    out = subprocess.run(
+        [str(exe), "register", str(src), str(tgt), "--voxel", "0.005", "--threads", "2", "--json", "-q"],
+        check=True,
+        capture_output=True,
+        text=True,
+    )
+    cli = json.loads(out.stdout)
+    r = ggs.register(ggs.read_point_cloud(src), ggs.read_point_cloud(tgt), voxel=0.005, threads=2)
+    assert r.transformation.tolist() == cli["transform"]
+    assert r.coarse_transformation.tolist() == cli["coarse_transform"]
+    assert r.score == cli["result"]["score"]
+    assert r.fitness == cli["refine"]["report"]["fitness_source"]
+
+
+def test_open3d_example():
+    pytest.importorskip("open3d")
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("example", ROOT / "python" / "examples" / "open3d_example.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    os.environ["GGS_NO_WINDOW"] = "1"
+    r = mod.main(["example"])
+    truth = np.loadtxt(DATA / "bun0_to_bun4_groundtruth.txt")
+    assert ggs.metrics.rre(r.transformation, truth) < 1.0
