@@ -147,7 +147,7 @@ def test_gil_is_released_during_registration():
     th = threading.Thread(target=count)
     th.start()
     t0 = time.perf_counter()
-    ggs.register(source, target, voxel=0.003, rotations="hopf15-dedup", threads=1)
+    ggs.register(source, target, voxel=0.003, rotations="full15", threads=1)
     t1 = time.perf_counter()
     done.set()
     th.join()
