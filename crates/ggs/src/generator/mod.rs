@@ -160,6 +160,8 @@ pub fn load_scan(input: &ScanInput, cfg: &GeneratorConfig) -> Result<(Vec<Point>
         ));
     }
     let fmt = Format::from_extension(path);
+    // A file that may hold a mesh is parsed once; without faces its vertices are the cloud.
+    let mut vertices_only: Option<Vec<Point>> = None;
     let mesh: Option<Mesh> = match fmt {
         Some(Format::Obj) | Some(Format::Stl) | Some(Format::Ply) if !cfg.mesh_vertices => {
             let bytes = std::fs::read(path).map_err(|e| GgsError::io(path, e))?;
@@ -168,7 +170,12 @@ pub fn load_scan(input: &ScanInput, cfg: &GeneratorConfig) -> Result<(Vec<Point>
                 Some(Format::Stl) => io::mesh::parse_stl(path, &bytes)?,
                 _ => io::ply::parse_ply_mesh(path, &bytes)?,
             };
-            (!m.triangles.is_empty()).then_some(m)
+            if m.triangles.is_empty() {
+                vertices_only = Some(m.vertices);
+                None
+            } else {
+                Some(m)
+            }
         }
         _ => None,
     };
@@ -215,8 +222,21 @@ pub fn load_scan(input: &ScanInput, cfg: &GeneratorConfig) -> Result<(Vec<Point>
             Ok((pts, true))
         }
         None => {
-            let cloud = io::read_cloud(path, None)?.cloud;
-            Ok((cloud.points.into_iter().map(scale).collect(), false))
+            let points = match vertices_only {
+                // As read_cloud does: points with a NaN or infinite coordinate are dropped.
+                Some(v) => v
+                    .into_iter()
+                    .filter(|p| p.iter().all(|c| c.is_finite()))
+                    .collect(),
+                None => io::read_cloud(path, None)?.cloud.points,
+            };
+            if points.is_empty() {
+                return Err(GgsError::EmptyCloud {
+                    what: path.display().to_string(),
+                    detail: String::new(),
+                });
+            }
+            Ok((points.into_iter().map(scale).collect(), false))
         }
     }
 }

@@ -191,6 +191,16 @@ fn parse_header(path: &Path, bytes: &[u8]) -> Result<Header> {
 /// Read the vertices of a PLY file.
 pub fn parse_ply(path: &Path, bytes: &[u8]) -> Result<Vec<Point>> {
     let h = parse_header(path, bytes)?;
+    read_vertices(path, bytes, &h, &mut None)
+}
+
+/// One pass over the data: the vertex element's `x y z`, and the faces if `faces` asks.
+fn read_vertices(
+    path: &Path,
+    bytes: &[u8],
+    h: &Header,
+    faces: &mut Option<FaceSink>,
+) -> Result<Vec<Point>> {
     let vi = h
         .elements
         .iter()
@@ -211,11 +221,10 @@ pub fn parse_ply(path: &Path, bytes: &[u8]) -> Result<Vec<Point>> {
                 })
         })
         .collect::<Result<_>>()?;
-    let mut no_faces = None;
     match h.encoding {
-        Encoding::Ascii => read_ascii(path, bytes, &h, vi, &xyz, &mut no_faces),
-        Encoding::BinaryLe => read_binary(path, bytes, &h, vi, &xyz, true, &mut no_faces),
-        Encoding::BinaryBe => read_binary(path, bytes, &h, vi, &xyz, false, &mut no_faces),
+        Encoding::Ascii => read_ascii(path, bytes, h, vi, &xyz, faces),
+        Encoding::BinaryLe => read_binary(path, bytes, h, vi, &xyz, true, faces),
+        Encoding::BinaryBe => read_binary(path, bytes, h, vi, &xyz, false, faces),
     }
 }
 
@@ -253,7 +262,6 @@ impl FaceSink {
 /// `vertex_index`) polygons, fan-triangulated. A file without faces gives no triangles.
 pub fn parse_ply_mesh(path: &Path, bytes: &[u8]) -> Result<crate::io::mesh::Mesh> {
     let h = parse_header(path, bytes)?;
-    let vertices = parse_ply(path, bytes)?;
     let face = h.elements.iter().enumerate().find_map(|(ei, e)| {
         (e.name == "face").then(|| {
             e.props.iter().position(|p| {
@@ -262,31 +270,16 @@ pub fn parse_ply_mesh(path: &Path, bytes: &[u8]) -> Result<crate::io::mesh::Mesh
             .map(|pi| (ei, pi))
         })?
     });
-    let mut mesh = crate::io::mesh::Mesh {
-        vertices,
-        groups: vec![String::new()],
-        ..Default::default()
-    };
-    let Some((element, property)) = face else {
-        return Ok(mesh);
-    };
-    let vi = h
-        .elements
-        .iter()
-        .position(|e| e.name == "vertex")
-        .unwrap_or(0);
-    let last = element.max(vi);
-    let mut sink = Some(FaceSink {
+    let mut sink = face.map(|(element, property)| FaceSink {
         element,
         property,
         triangles: Vec::new(),
         polygon: Vec::new(),
     });
-    let xyz = [usize::MAX; 3];
-    match h.encoding {
-        Encoding::Ascii => read_ascii(path, bytes, &h, last, &xyz, &mut sink)?,
-        Encoding::BinaryLe => read_binary(path, bytes, &h, last, &xyz, true, &mut sink)?,
-        Encoding::BinaryBe => read_binary(path, bytes, &h, last, &xyz, false, &mut sink)?,
+    let mut mesh = crate::io::mesh::Mesh {
+        vertices: read_vertices(path, bytes, &h, &mut sink)?,
+        groups: vec![String::new()],
+        ..Default::default()
     };
     let triangles = sink.map(|s| s.triangles).unwrap_or_default();
     let n = mesh.vertices.len() as u32;
@@ -323,7 +316,8 @@ fn read_ascii(
     // A header may declare more rows than the file holds: reserve no more than the bytes
     // could hold (an ascii vertex takes at least 6 bytes).
     let mut out = Vec::with_capacity(h.elements[vi].count.min(text.len() / 6));
-    for (ei, el) in h.elements.iter().enumerate().take(vi + 1) {
+    let last = faces.as_ref().map_or(vi, |f| f.element.max(vi));
+    for (ei, el) in h.elements.iter().enumerate().take(last + 1) {
         for k in 0..el.count {
             let (li, raw) = lines.next().ok_or_else(|| {
                 GgsError::in_file(
@@ -418,7 +412,8 @@ fn read_binary(
         )
     };
     let mut out = Vec::new();
-    for (ei, el) in h.elements.iter().enumerate().take(vi + 1) {
+    let last = faces.as_ref().map_or(vi, |f| f.element.max(vi));
+    for (ei, el) in h.elements.iter().enumerate().take(last + 1) {
         let fixed: Option<usize> = el
             .props
             .iter()
