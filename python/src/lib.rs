@@ -351,7 +351,7 @@ impl PyResultObj {
 
 /// Register `source` onto `target`: coarse grid search, then refinement.
 #[pyfunction]
-#[pyo3(signature = (source, target, voxel=None, rotations="limited15", refine="gicp", threads=None, top_k=1))]
+#[pyo3(signature = (source, target, voxel=None, rotations="limited15", refine="gicp", threads=None, top_k=1, search="exhaustive", precision="mixed"))]
 #[allow(clippy::too_many_arguments)]
 fn register(
     py: Python<'_>,
@@ -362,6 +362,8 @@ fn register(
     refine: &str,
     threads: Option<usize>,
     top_k: usize,
+    search: &str,
+    precision: &str,
 ) -> PyResult<PyResultObj> {
     let t0 = Instant::now();
     let source = Cloud::new(points_of("source", source)?);
@@ -383,6 +385,11 @@ fn register(
         })?,
     };
     let refine_cfg = parse_refine(refine, None, 0.25, 500, 20, threads)?;
+    let mode = search::SearchMode::from_name(search, search::CoarseToFine::default())
+        .map_err(|e| PyValueError::new_err(e.to_string()))?;
+    let precision: search::Precision = precision
+        .parse()
+        .map_err(|e: ggs::GgsError| PyValueError::new_err(e.to_string()))?;
     let cancel = Arc::new(AtomicBool::new(false));
     let cfg = SearchConfig {
         voxel,
@@ -392,6 +399,8 @@ fn register(
         max_memory: None,
         progress: None,
         cancel: Some(cancel.clone()),
+        mode,
+        precision,
     };
     let outcome = run_interruptible(py, &cancel, || -> ggs::Result<_> {
         let coarse = search::coarse_register(&source, &target, &set, &cfg)?;

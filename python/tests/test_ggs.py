@@ -82,6 +82,10 @@ def test_nan_rows_and_bad_options():
         ggs.register(a, a, voxel=0.1, refine="icp9")
     with pytest.raises(ValueError, match="voxel must be positive"):
         ggs.register(a, a, voxel=-1.0)
+    with pytest.raises(ValueError, match="unknown mode"):
+        ggs.register(a, a, voxel=0.1, search="greedy")
+    with pytest.raises(ValueError, match="precision"):
+        ggs.register(a, a, voxel=0.1, precision="f16")
     with pytest.raises(OSError):
         ggs.read_point_cloud("/nonexistent/cloud.ply")
 
@@ -107,6 +111,17 @@ def test_register_bundled_pair_and_result_fields():
     again = ggs.refine(source, target, r.coarse_transformation)
     np.testing.assert_array_equal(again.transformation, r.transformation)
     assert again.score is None and again.fitness == r.fitness
+
+
+def test_search_modes_and_precisions_agree():
+    source, target = bunny_small()
+    base = ggs.register(source, target, voxel=0.006, refine="none")
+    for search, precision in [("coarse-to-fine", "mixed"), ("exhaustive", "f64")]:
+        r = ggs.register(
+            source, target, voxel=0.006, refine="none", search=search, precision=precision
+        )
+        np.testing.assert_array_equal(r.transformation, base.transformation)
+        assert r.score == base.score
 
 
 def test_same_answer_on_any_thread_count():

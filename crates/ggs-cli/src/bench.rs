@@ -34,6 +34,8 @@ pub struct BenchArgs {
     /// Rotation set (default: the protocol's).
     #[arg(long)]
     pub rotations: Option<String>,
+    #[command(flatten)]
+    pub search: crate::register::SearchArgs,
     /// Refinement: gicp (default), p2plane, p2p, none.
     #[arg(long, default_value = "gicp")]
     pub refine: String,
@@ -100,6 +102,7 @@ pub fn run(args: BenchArgs) -> Result<()> {
         None => None,
     };
     let rotations_name = args.rotations.as_deref().unwrap_or(defaults.rotations);
+    let (mode, precision) = args.search.parse()?;
     let cfg = RunConfig {
         voxel: args.voxel,
         rotations: RotationSet::named(rotations_name)?,
@@ -108,6 +111,8 @@ pub fn run(args: BenchArgs) -> Result<()> {
         max_rre_deg: args.max_rre.unwrap_or(defaults.max_rre_deg),
         max_rte: args.max_rte.or(defaults.max_rte),
         default_voxel: defaults.voxel,
+        mode,
+        precision,
     };
     let out = args
         .out

@@ -49,6 +49,11 @@ pub struct RegisterArgs {
     #[arg(long, value_name = "SIZE")]
     pub max_memory: Option<String>,
     #[command(flatten)]
+    pub search: SearchArgs,
+    /// Print the time of every stage (wall and CPU per stage).
+    #[arg(long)]
+    pub timings: bool,
+    #[command(flatten)]
     pub io: IoArgs,
     /// Write target (blue) and moved source (orange) together to this PLY file.
     #[arg(long, value_name = "OUT.ply")]
@@ -61,6 +66,44 @@ pub struct RegisterArgs {
     /// No progress bar and no warnings.
     #[arg(short, long)]
     pub quiet: bool,
+}
+
+/// How the rotations are searched (shared by `register` and `bench`).
+#[derive(Args, Clone)]
+pub struct SearchArgs {
+    /// exhaustive: every rotation at the voxel size (GGS); coarse-to-fine: every rotation
+    /// at --coarse-factor × voxel, then the best --coarse-keep of them and their grid
+    /// neighbours at the voxel size (much faster; same answers on every benchmark pair).
+    #[arg(long, default_value = "exhaustive", value_name = "MODE")]
+    pub search: String,
+    /// Correlation arithmetic: mixed (f32 with proven error bounds, f64 re-scoring of every
+    /// rotation whose bound reaches the best: same picks as f64) or f64.
+    #[arg(long, default_value = "mixed")]
+    pub precision: String,
+    /// Coarse voxel = this × voxel (coarse-to-fine).
+    #[arg(long, default_value_t = 2.0, value_name = "F")]
+    pub coarse_factor: f64,
+    /// Fraction of the rotations kept from the coarse level (coarse-to-fine).
+    #[arg(long, default_value_t = 0.02, value_name = "FRAC")]
+    pub coarse_keep: f64,
+    /// Keep at least this many rotations from the coarse level (coarse-to-fine).
+    #[arg(long, default_value_t = 16, value_name = "N")]
+    pub coarse_keep_min: usize,
+}
+
+impl SearchArgs {
+    /// The search mode and precision these options ask for.
+    pub fn parse(&self) -> Result<(search::SearchMode, search::Precision)> {
+        let c2f = search::CoarseToFine {
+            factor: self.coarse_factor,
+            keep_fraction: self.coarse_keep,
+            keep_min: self.coarse_keep_min,
+            neighbour_deg: None,
+        };
+        let mode = search::SearchMode::from_name(&self.search, c2f).context("--search")?;
+        let precision = self.precision.parse().context("--precision")?;
+        Ok((mode, precision))
+    }
 }
 
 #[derive(Args)]
@@ -201,6 +244,7 @@ pub fn run(args: RegisterArgs) -> Result<()> {
         ),
         None => None,
     };
+    let (mode, precision) = args.search.parse()?;
     let pb = progress_bar(set.len(), args.quiet);
     let pbc = pb.clone();
     let cfg = SearchConfig {
@@ -211,6 +255,8 @@ pub fn run(args: RegisterArgs) -> Result<()> {
         max_memory,
         progress: Some(Arc::new(move |n| pbc.set_position(n as u64))),
         cancel: None,
+        mode,
+        precision,
     };
     let result = search::coarse_register(&source, &target, &set, &cfg);
     pb.finish_and_clear();
@@ -250,6 +296,9 @@ pub fn run(args: RegisterArgs) -> Result<()> {
         print_summary(&result, voxel_auto, read_ms, total_ms)?;
         if let Some(r) = &refined {
             print_report(r)?;
+        }
+        if args.timings {
+            print_timings(&result, refined.as_ref(), read_ms, total_ms)?;
         }
     }
     Ok(())
@@ -305,11 +354,80 @@ fn print_summary(r: &SearchResult, voxel_auto: bool, read_ms: f64, total_ms: f64
         g.fft_len[1],
         g.fft_len[2]
     );
+    if let Some(c) = &r.coarse_level {
+        let f = &c.geometry.fft_len;
+        outln!(
+            "coarse      voxel {}, {} source points, FFT {}×{}×{}; kept {} of {} rotations, with neighbours within {:.1}°: {} scored at the voxel size",
+            c.voxel, c.source_points, f[0], f[1], f[2], c.kept, r.rotations, c.neighbour_deg, r.scored
+        );
+    }
     let t = &r.timings;
     outln!(
         "time        {:.0} ms total: read {:.0}, target {:.0}, extents {:.0}, search {:.0} ms on {} thread(s)",
         total_ms, read_ms, t.target_ms, t.extents_ms, t.search_ms, r.threads
     );
+    Ok(())
+}
+
+/// The per-stage split of `ggs register --timings`.
+fn print_timings(
+    r: &SearchResult,
+    refined: Option<&RefineResult>,
+    read_ms: f64,
+    total_ms: f64,
+) -> Result<()> {
+    let t = &r.timings;
+    let cpu = t.cpu_voxelize_ms + t.cpu_forward_ms + t.cpu_product_ms + t.cpu_inverse_ms;
+    let pct = |v: f64| if cpu > 0.0 { 100.0 * v / cpu } else { 0.0 };
+    outln!();
+    outln!("stage                              wall ms     CPU ms  share of scoring CPU");
+    outln!("read both clouds                {read_ms:>10.1}");
+    outln!("target kernel + spectra         {:>10.1}", t.target_ms);
+    outln!("rotated extents                 {:>10.1}", t.extents_ms);
+    if r.coarse_level.is_some() {
+        outln!(
+            "coarse level (all rotations)    {:>10.1}",
+            t.coarse_level_ms
+        );
+    }
+    outln!(
+        "search ({} rotations, {} thr)  {:>10.1}",
+        r.scored,
+        r.threads,
+        t.search_ms
+    );
+    for (name, v) in [
+        ("  voxelize rotated source", t.cpu_voxelize_ms),
+        ("  forward FFT (z, y)", t.cpu_forward_ms),
+        ("  FFT x, spectrum product, iFFT x", t.cpu_product_ms),
+        ("  inverse FFT (y, z) + argmax", t.cpu_inverse_ms),
+    ] {
+        outln!("{name:<32} {:>10} {v:>10.1}  {:>5.1} %", "", pct(v));
+    }
+    if r.precision == search::Precision::Mixed {
+        outln!(
+            "  of which f64 re-scoring ({} rotation(s)) {:>5.1} wall",
+            r.rescored,
+            t.rescore_ms
+        );
+    }
+    let fft_cpu_s = (t.cpu_forward_ms + t.cpu_product_ms + t.cpu_inverse_ms) * 1e-3;
+    if fft_cpu_s > 0.0 {
+        outln!(
+            "  FFT work {:.2} GFLOP (nominal 5·N·log2 N): {:.1} GFLOP/s per core in the FFT stages, {:.1} GFLOP/s over the search wall time",
+            r.fft_gflop,
+            r.fft_gflop / fft_cpu_s,
+            r.fft_gflop / ((t.search_ms + t.coarse_level_ms) * 1e-3)
+        );
+    }
+    if let Some(f) = refined {
+        outln!(
+            "refine (setup {:.1})              {:>10.1}",
+            f.setup_ms,
+            f.total_ms
+        );
+    }
+    outln!("total                           {total_ms:>10.1}");
     Ok(())
 }
 

@@ -317,3 +317,75 @@ fn aligned_output_in_the_format_of_its_extension() {
     assert!(!d.join("m.weird").exists());
     std::fs::remove_dir_all(&d).unwrap();
 }
+
+#[test]
+fn coarse_to_fine_and_timings() {
+    let full = register_pair(&["--refine", "none"]);
+    let fast = register_pair(&[
+        "--refine",
+        "none",
+        "--search",
+        "coarse-to-fine",
+        "--timings",
+    ]);
+    assert!(
+        fast.status.success(),
+        "{}",
+        String::from_utf8_lossy(&fast.stderr)
+    );
+    let (full, fast) = (
+        String::from_utf8(full.stdout).unwrap(),
+        String::from_utf8(fast.stdout).unwrap(),
+    );
+    // The same matrix.
+    assert_eq!(
+        full.lines().take(4).collect::<Vec<_>>(),
+        fast.lines().take(4).collect::<Vec<_>>()
+    );
+    for needle in [
+        "coarse      voxel 0.012",
+        "coarse level (all rotations)",
+        "voxelize rotated source",
+        "inverse FFT (y, z) + argmax",
+        "GFLOP/s",
+    ] {
+        assert!(fast.contains(needle), "{needle} missing:\n{fast}");
+    }
+    let json = register_pair(&["--refine", "none", "--precision", "f64", "--json"]);
+    let v: serde_json::Value = serde_json::from_slice(&json.stdout).unwrap();
+    assert_eq!(v["result"]["precision"], "f64");
+    assert_eq!(v["result"]["rescored"], 0);
+    assert!(v["result"]["fft_gflop"].as_f64().unwrap() > 0.0);
+    assert_eq!(
+        matrix_from_text(&full),
+        json_matrix(&v["transform"]),
+        "f64 and mixed precision pick the same"
+    );
+}
+
+#[test]
+fn bad_search_options_are_errors() {
+    let (b0, b4) = (data("bun0.pcd"), data("bun4.pcd"));
+    let (b0, b4) = (s(&b0), s(&b4));
+    assert_fails(
+        &["register", b0, b4, "--search", "greedy"],
+        "unknown mode 'greedy'",
+    );
+    assert_fails(&["register", b0, b4, "--precision", "f16"], "unknown 'f16'");
+    assert_fails(
+        &[
+            "register",
+            b0,
+            b4,
+            "--search",
+            "c2f",
+            "--coarse-factor",
+            "0.5",
+        ],
+        "coarse factor",
+    );
+    assert_fails(
+        &["register", b0, b4, "--search", "c2f", "--coarse-keep", "2"],
+        "keep fraction",
+    );
+}

@@ -17,23 +17,43 @@
 //! Transforms: r2c along z (only the rows the source occupies), complex along y (only the
 //! x-planes the source occupies), complex along x, product with the conjugate kernel
 //! spectrum, inverse along x, inverse along y (only the x-planes of valid offsets), c2r along
-//! z (only the rows of valid offsets). Lengths are 2·3·5·7-smooth, z even.
+//! z (only the rows of valid offsets). Lengths are 2·3-smooth (rustfft's AVX kernels are
+//! fastest there: see docs/performance.md), z even.
+//!
+//! Precision: the correlator is generic over the sample type. In f64 the outputs are rounded
+//! to the integers they equal ([`CpuCorrelator::best_offset`]). In f32 (twice the SIMD lanes,
+//! 2–3× faster transforms) they are approximations with a proven error bound
+//! ([`CpuCorrelator::approx_best`], [`CpuCorrelator::error_bound`]); the search re-scores in
+//! f64 every rotation whose bound reaches the best exact score, so its picks are the f64 ones.
 
 use crate::voxel::Occupancy;
 use realfft::{ComplexToReal, RealFftPlanner, RealToComplex};
 use rustfft::num_complex::Complex;
-use rustfft::{Fft, FftPlanner};
+use rustfft::num_traits::Float;
+use rustfft::{Fft, FftNum, FftPlanner};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 type C64 = Complex<f64>;
 
-/// `true` if `n` has no prime factor above 7.
-pub fn is_7_smooth(mut n: usize) -> bool {
+/// Sample type of a correlator: f32 or f64.
+pub trait Real: FftNum + Float + Default {
+    /// Unit roundoff `u = 2^−p` of the type (2^−24 for f32, 2^−53 for f64).
+    const UNIT_ROUNDOFF: f64;
+}
+impl Real for f32 {
+    const UNIT_ROUNDOFF: f64 = 5.960_464_477_539_063e-8;
+}
+impl Real for f64 {
+    const UNIT_ROUNDOFF: f64 = 1.110_223_024_625_156_5e-16;
+}
+
+/// `true` if `n` has no prime factor above 3.
+pub fn is_3_smooth(mut n: usize) -> bool {
     if n == 0 {
         return false;
     }
-    for p in [2, 3, 5, 7] {
+    for p in [2, 3] {
         while n % p == 0 {
             n /= p;
         }
@@ -41,11 +61,13 @@ pub fn is_7_smooth(mut n: usize) -> bool {
     n == 1
 }
 
-/// Smallest 2·3·5·7-smooth length ≥ `min` (and even when `even`).
+/// Smallest 2·3-smooth length ≥ `min` (and even when `even`). Measured on rustfft 6.4 with
+/// AVX: 64 costs 1.75 ns per f64 element against 2.66 for 56 = 7·8 and 5.0 for 50, so a
+/// longer 3-smooth length is cheaper per line than a shorter one with factors 5 or 7.
 pub fn fast_len(min: usize, even: bool) -> usize {
     let mut n = min.max(1);
     loop {
-        if is_7_smooth(n) && (!even || n % 2 == 0) {
+        if is_3_smooth(n) && (!even || n % 2 == 0) {
             return n;
         }
         n += 1;
@@ -72,7 +94,7 @@ pub struct Geometry {
     pub center: [usize; 3],
     /// Largest source grid dims NS over all rotations.
     pub source_max: [usize; 3],
-    /// FFT lengths L ≥ NS_max + floor(NR/2), 7-smooth, z even.
+    /// FFT lengths L ≥ NS_max + floor(NR/2), 3-smooth, z even.
     pub fft_len: [usize; 3],
 }
 
@@ -93,27 +115,54 @@ impl Geometry {
         }
     }
 
+    /// Nominal floating-point operations of one correlation for a source grid of dims `ns`,
+    /// as the transforms are pruned here: `5·L·log2 L` per complex transform of length `L`,
+    /// `2.5·L·log2 L` per real one (the usual FFT convention: the count of a radix-2
+    /// algorithm, whatever the algorithm used), 6 per complex product.
+    ///
+    /// Forward: `nsx·nsy` real transforms along z, `nsx·kz` along y; `Ly·kz` forward and
+    /// inverse along x and `Lx·Ly·kz` products; inverse: `nsx·kz` along y, `nsx·nsy` real
+    /// along z.
+    pub fn flops(&self, ns: [usize; 3]) -> f64 {
+        let c = |l: usize| 5.0 * l as f64 * (l as f64).log2();
+        let [lx, ly, lz] = self.fft_len;
+        let kz = self.kz() as f64;
+        let (nsx, nsy) = (ns[0] as f64, ns[1] as f64);
+        let z = 2.0 * nsx * nsy * 0.5 * c(lz);
+        let y = 2.0 * nsx * kz * c(ly);
+        let x = 2.0 * ly as f64 * kz * c(lx) + 6.0 * (lx * ly) as f64 * kz;
+        z + y + x
+    }
+
     /// Complex bins along z of the real transform: `L_z/2 + 1`.
     pub fn kz(&self) -> usize {
         self.fft_len[2] / 2 + 1
     }
 
-    /// Bytes of the kernel spectrum (shared by all workers), saturating at `u64::MAX`.
-    pub fn kernel_bytes(&self) -> u64 {
-        saturate(self.fft_len[0] as u128 * self.fft_len[1] as u128 * self.kz() as u128 * 16)
+    /// Bytes of the kernel spectrum (shared by all workers) with `real_bytes` per real
+    /// sample (4 for f32, 8 for f64), saturating at `u64::MAX`.
+    pub fn kernel_bytes(&self, real_bytes: u64) -> u64 {
+        saturate(
+            self.fft_len[0] as u128
+                * self.fft_len[1] as u128
+                * self.kz() as u128
+                * 2
+                * real_bytes as u128,
+        )
     }
 
-    /// Bytes of one worker's buffers, saturating at `u64::MAX`.
-    pub fn workspace_bytes(&self) -> u64 {
+    /// Bytes of one worker's buffers with `real_bytes` per real sample, saturating at
+    /// `u64::MAX`.
+    pub fn workspace_bytes(&self, real_bytes: u64) -> u64 {
         let [lx, ly, lz] = self.fft_len.map(|v| v as u128);
         let kz = self.kz() as u128;
         let ax = self.source_max[0].max(self.kernel_dims[0]) as u128;
         let ay = self.source_max[1].max(self.kernel_dims[1]) as u128;
-        let real = ax * ay * lz * 8;
-        let zspec = ax * ay * kz * 16;
-        let grid = ly * kz * lx * 16;
-        let slab = X_BLOCK as u128 * kz * ly * 16;
-        saturate(real + zspec + grid + slab + 4 * (lx + ly + lz) * 16)
+        let real = ax * ay * lz;
+        let zspec = ax * ay * kz * 2;
+        let grid = ly * kz * lx * 2;
+        let slab = X_BLOCK as u128 * kz * ly * 2;
+        saturate((real + zspec + grid + slab + 8 * (lx + ly + lz)) * real_bytes as u128)
     }
 }
 
@@ -124,16 +173,18 @@ fn saturate(v: u128) -> u64 {
 
 /// CPU correlator: FFT plans and the conjugate kernel spectrum of one target, shared by all
 /// workers (it is `Sync`); each worker brings its own [`Workspace`].
-pub struct CpuCorrelator {
+pub struct CpuCorrelator<T: Real = f64> {
     geo: Geometry,
-    r2c: Arc<dyn RealToComplex<f64>>,
-    c2r: Arc<dyn ComplexToReal<f64>>,
-    fft_y: Arc<dyn Fft<f64>>,
-    ifft_y: Arc<dyn Fft<f64>>,
-    fft_x: Arc<dyn Fft<f64>>,
-    ifft_x: Arc<dyn Fft<f64>>,
-    /// conj(FFT(6·O_k − 1)) / (Lx·Ly·Lz), layout [y][kz][x].
-    kernel: Vec<C64>,
+    r2c: Arc<dyn RealToComplex<T>>,
+    c2r: Arc<dyn ComplexToReal<T>>,
+    fft_y: Arc<dyn Fft<T>>,
+    ifft_y: Arc<dyn Fft<T>>,
+    fft_x: Arc<dyn Fft<T>>,
+    ifft_x: Arc<dyn Fft<T>>,
+    /// conj(FFT(6·O_k − 1)) / (Lx·Ly·Lz), layout [y][kz][x] (computed in f64).
+    kernel: Vec<Complex<T>>,
+    /// `max_j |FFT(6·O_k − 1)_j|`, unnormalized (for the error bound).
+    kernel_peak: f64,
     scratch_len: usize,
     /// Cells of the kernel grid, |K|.
     pub kernel_cells: i64,
@@ -142,16 +193,19 @@ pub struct CpuCorrelator {
 }
 
 /// Per-worker buffers, allocated once and reused for every rotation.
-pub struct Workspace {
+#[derive(Clone)]
+pub struct Workspace<T: Real = f64> {
     /// Source occupancy, layout [x < ax][y < ay][z < Lz].
-    real: Vec<f64>,
+    real: Vec<T>,
     ay: usize,
-    zspec: Vec<C64>,
-    grid: Vec<C64>,
-    slab: Vec<C64>,
-    zrow: Vec<C64>,
-    rrow: Vec<f64>,
-    scratch: Vec<C64>,
+    zspec: Vec<Complex<T>>,
+    grid: Vec<Complex<T>>,
+    slab: Vec<Complex<T>>,
+    zrow: Vec<Complex<T>>,
+    rrow: Vec<T>,
+    scratch: Vec<Complex<T>>,
+    /// Σ over the source grid (its occupied cells), from the spectrum's DC bin.
+    occupied_estimate: f64,
     ns: [usize; 3],
     /// Time spent in the forward transforms (z, y).
     pub t_forward: Duration,
@@ -163,23 +217,23 @@ pub struct Workspace {
     pub max_rounding_error: f64,
 }
 
-impl Workspace {
+impl<T: Real> Workspace<T> {
     /// Start a new source grid of dims `ns` (each ≤ the geometry's `source_max`): clears the
     /// region it will occupy.
     pub fn begin(&mut self, ns: [usize; 3]) {
         let lz = self.rrow.len();
         for x in 0..ns[0] {
             let start = x * self.ay * lz;
-            self.real[start..start + ns[1] * lz].fill(0.0);
+            self.real[start..start + ns[1] * lz].fill(T::zero());
         }
         self.ns = ns;
     }
 
     /// The grid buffer with its strides `(buffer, sy, sx)`: cell (i, j, k) is
-    /// `buffer[i·sx + j·sy + k]`; write 1.0 to mark it occupied (the fast path for
+    /// `buffer[i·sx + j·sy + k]`; write 1 to mark it occupied (the fast path for
     /// voxelizing many points).
     #[inline]
-    pub fn grid_mut(&mut self) -> (&mut [f64], usize, usize) {
+    pub fn grid_mut(&mut self) -> (&mut [T], usize, usize) {
         let lz = self.rrow.len();
         (&mut self.real[..], lz, self.ay * lz)
     }
@@ -188,7 +242,7 @@ impl Workspace {
     #[inline]
     pub fn set(&mut self, i: usize, j: usize, k: usize) {
         let lz = self.rrow.len();
-        self.real[(i * self.ay + j) * lz + k] = 1.0;
+        self.real[(i * self.ay + j) * lz + k] = T::one();
     }
 }
 
@@ -199,16 +253,90 @@ pub struct BestOffset {
     pub offset: [usize; 3],
 }
 
-impl CpuCorrelator {
+/// Approximate best of one rotation from a reduced-precision correlation: the largest
+/// computed output and a bound on how far the exact best match score can be from it,
+/// `|max_a m(a) − value| ≤ error_bound`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ApproxBest {
+    pub value: f64,
+    pub error_bound: f64,
+    /// Offset of `value` (the exact best may sit elsewhere when several are close).
+    pub offset: [usize; 3],
+}
+
+impl ApproxBest {
+    /// Smallest possible exact best match score.
+    pub fn lower(&self) -> f64 {
+        self.value - self.error_bound
+    }
+    /// Largest possible exact best match score.
+    pub fn upper(&self) -> f64 {
+        self.value + self.error_bound
+    }
+}
+
+/// Relative 2-norm error bound of one 1-D FFT of length `l` in arithmetic with unit
+/// roundoff `u`: `16·u·⌈log2 l⌉`. Higham (Accuracy and Stability of Numerical Algorithms,
+/// Thm 24.2) proves `log2(l)·η/(1 − log2(l)·η)` with `η = μ + γ4(√2 + μ) ≈ 6.7u` for radix 2
+/// with twiddles correct to `μ ≈ u` (rustfft computes them in f64); the factor 16 also
+/// covers the radix-3 butterflies and realfft's extra twiddle pass.
+fn fft_error(l: usize, u: f64) -> f64 {
+    16.0 * u * (usize::BITS - (l.max(2) - 1).leading_zeros()) as f64
+}
+
+/// Conjugate kernel spectrum for `geo` computed in f64 (layout [y][kz][x], scaled by
+/// 1/(Lx·Ly·Lz)) and its unnormalized peak magnitude.
+fn kernel_spectrum(geo: Geometry, kernel: &Occupancy) -> (Vec<C64>, f64) {
+    let mut me = CpuCorrelator::<f64>::plan(geo);
+    let [lx, ly, lz] = geo.fft_len;
+    let mut ws = me.workspace();
+    ws.begin(geo.kernel_dims);
+    let [nx, ny, nz] = geo.kernel_dims;
+    for i in 0..nx {
+        for j in 0..ny {
+            for k in 0..nz {
+                let v = if kernel.get(i, j, k) { 5.0 } else { -1.0 };
+                ws.real[(i * ws.ay + j) * lz + k] = v;
+            }
+        }
+    }
+    me.forward_zy(&mut ws);
+    let kz = geo.kz();
+    for y in 0..ly {
+        let block = &mut ws.grid[y * kz * lx..(y + 1) * kz * lx];
+        me.fft_x.process_with_scratch(block, &mut ws.scratch);
+    }
+    let peak = ws.grid.iter().map(|c| c.norm()).fold(0.0, f64::max);
+    let scale = 1.0 / (lx * ly * lz) as f64;
+    me.kernel = Vec::new();
+    (ws.grid.iter().map(|c| c.conj() * scale).collect(), peak)
+}
+
+impl<T: Real> CpuCorrelator<T> {
     /// Plan the transforms for `geo` and compute the kernel spectrum of `kernel`
-    /// (whose dims must equal `geo.kernel_dims`).
+    /// (whose dims must equal `geo.kernel_dims`) in f64, stored as `T`.
     pub fn new(geo: Geometry, kernel: &Occupancy) -> Self {
         assert_eq!(kernel.dims, geo.kernel_dims);
+        let mut me = Self::plan(geo);
+        let (spectrum, peak) = kernel_spectrum(geo, kernel);
+        let cast = |v: f64| T::from_f64(v).expect("finite spectrum");
+        me.kernel = spectrum
+            .iter()
+            .map(|c| Complex::new(cast(c.re), cast(c.im)))
+            .collect();
+        me.kernel_peak = peak;
+        me.kernel_occupied = kernel.occupied() as i64;
+        me.kernel_cells = kernel.cells.len() as i64;
+        me
+    }
+
+    /// FFT plans for `geo`, without a kernel.
+    fn plan(geo: Geometry) -> Self {
         let [lx, ly, lz] = geo.fft_len;
-        let mut rp = RealFftPlanner::<f64>::new();
+        let mut rp = RealFftPlanner::<T>::new();
         let r2c = rp.plan_fft_forward(lz);
         let c2r = rp.plan_fft_inverse(lz);
-        let mut cp = FftPlanner::<f64>::new();
+        let mut cp = FftPlanner::<T>::new();
         let fft_y = cp.plan_fft_forward(ly);
         let ifft_y = cp.plan_fft_inverse(ly);
         let fft_x = cp.plan_fft_forward(lx);
@@ -224,9 +352,7 @@ impl CpuCorrelator {
         .into_iter()
         .max()
         .unwrap_or(0);
-        let kernel_occupied = kernel.occupied() as i64;
-        let kernel_cells = kernel.cells.len() as i64;
-        let mut me = CpuCorrelator {
+        CpuCorrelator {
             geo,
             r2c,
             c2r,
@@ -235,30 +361,11 @@ impl CpuCorrelator {
             fft_x,
             ifft_x,
             kernel: Vec::new(),
+            kernel_peak: 0.0,
             scratch_len,
-            kernel_cells,
-            kernel_occupied,
-        };
-        let mut ws = me.workspace();
-        ws.begin(geo.kernel_dims);
-        let [nx, ny, nz] = geo.kernel_dims;
-        for i in 0..nx {
-            for j in 0..ny {
-                for k in 0..nz {
-                    let v = if kernel.get(i, j, k) { 5.0 } else { -1.0 };
-                    ws.real[(i * ws.ay + j) * lz + k] = v;
-                }
-            }
+            kernel_cells: 0,
+            kernel_occupied: 0,
         }
-        me.forward_zy(&mut ws);
-        let scale = 1.0 / (lx * ly * lz) as f64;
-        let kz = geo.kz();
-        for y in 0..ly {
-            let block = &mut ws.grid[y * kz * lx..(y + 1) * kz * lx];
-            me.fft_x.process_with_scratch(block, &mut ws.scratch);
-        }
-        me.kernel = ws.grid.iter().map(|c| c.conj() * scale).collect();
-        me
     }
 
     pub fn geometry(&self) -> &Geometry {
@@ -266,20 +373,22 @@ impl CpuCorrelator {
     }
 
     /// Fresh buffers for one worker.
-    pub fn workspace(&self) -> Workspace {
+    pub fn workspace(&self) -> Workspace<T> {
         let [lx, ly, lz] = self.geo.fft_len;
         let kz = self.geo.kz();
         let ax = self.geo.source_max[0].max(self.geo.kernel_dims[0]);
         let ay = self.geo.source_max[1].max(self.geo.kernel_dims[1]);
+        let zero = Complex::<T>::default();
         Workspace {
-            real: vec![0.0; ax * ay * lz],
+            real: vec![T::zero(); ax * ay * lz],
             ay,
-            zspec: vec![C64::default(); ax * ay * kz],
-            grid: vec![C64::default(); ly * kz * lx],
-            slab: vec![C64::default(); X_BLOCK * kz * ly],
-            zrow: vec![C64::default(); kz],
-            rrow: vec![0.0; lz],
-            scratch: vec![C64::default(); self.scratch_len],
+            zspec: vec![zero; ax * ay * kz],
+            grid: vec![zero; ly * kz * lx],
+            slab: vec![zero; X_BLOCK * kz * ly],
+            zrow: vec![zero; kz],
+            rrow: vec![T::zero(); lz],
+            scratch: vec![zero; self.scratch_len],
+            occupied_estimate: 0.0,
             ns: [0; 3],
             t_forward: Duration::ZERO,
             t_product: Duration::ZERO,
@@ -290,7 +399,7 @@ impl CpuCorrelator {
 
     /// r2c along z and FFT along y of the workspace's current grid into `ws.grid`
     /// (layout [y][kz][x]; columns x ≥ NS_x are zero).
-    fn forward_zy(&self, ws: &mut Workspace) {
+    fn forward_zy(&self, ws: &mut Workspace<T>) {
         let [lx, ly, lz] = self.geo.fft_len;
         let kz = self.geo.kz();
         let [nsx, nsy, _] = ws.ns;
@@ -309,7 +418,7 @@ impl CpuCorrelator {
             }
         }
         for line in ws.grid.chunks_exact_mut(lx) {
-            line[nsx..].fill(C64::default());
+            line[nsx..].fill(Complex::default());
         }
         // Blocks of X_BLOCK x-planes: one batched FFT call, and the scatter into the grid
         // writes X_BLOCK neighbouring x values at a time.
@@ -323,13 +432,14 @@ impl CpuCorrelator {
                     for y in 0..nsy {
                         dst[y] = ws.zspec[(x * ay + y) * kz + k];
                     }
-                    dst[nsy..].fill(C64::default());
+                    dst[nsy..].fill(Complex::default());
                 }
             }
             self.fft_y
                 .process_with_scratch(&mut ws.slab[..nb * kz * ly], &mut ws.scratch);
-            for y in 0..ly {
-                for k in 0..kz {
+            // k outside y: the nb slab lines of one k stay in L1 while y walks them.
+            for k in 0..kz {
+                for y in 0..ly {
                     let base = (y * kz + k) * lx + x0;
                     for b in 0..nb {
                         ws.grid[base + b] = ws.slab[(b * kz + k) * ly + y];
@@ -340,14 +450,179 @@ impl CpuCorrelator {
         }
     }
 
+    /// Bound on `max_a |computed(a) − m(a)|` for a source grid with `occupied` occupied cells:
+    /// `(2·ε_F + 4u)·√occupied·max_j|K_j|` with `ε_F = Σ_d ε(L_d)` the 3-D transform's
+    /// relative error ([`fft_error`]), `u` the unit roundoff and `K` the unnormalized kernel
+    /// spectrum. Derivation: `‖x‖₂ = √occupied`; the forward transform errs by `ε_F·‖X‖₂`,
+    /// the product (kernel rounded to `T`, one complex multiply) by `4u·‖X‖₂·max|K|`, the
+    /// inverse by `ε_F` of its result, and the 2-norm of the error bounds its largest entry.
+    /// Doubled for second-order terms.
+    pub fn error_bound(&self, occupied: f64) -> f64 {
+        let u = T::UNIT_ROUNDOFF;
+        let eps: f64 = self.geo.fft_len.iter().map(|&l| fft_error(l, u)).sum();
+        2.0 * (2.0 * eps + 4.0 * u) * occupied.max(0.0).sqrt() * self.kernel_peak
+    }
+
+    /// Correlate in `T` and return the largest computed output with its error bound.
+    pub fn approx_best(&self, ws: &mut Workspace<T>) -> ApproxBest {
+        let mut best = f64::NEG_INFINITY;
+        let mut offset = [0; 3];
+        self.correlate(ws, |v, a| {
+            let v = v.to_f64().unwrap_or(f64::NAN);
+            if v > best {
+                best = v;
+                offset = a;
+            }
+        });
+        ApproxBest {
+            value: best,
+            error_bound: self.error_bound(ws.occupied_estimate),
+            offset,
+        }
+    }
+
+    /// Every output of the correlation, in x-major C order over the valid offsets.
+    fn correlate(&self, ws: &mut Workspace<T>, visit: impl FnMut(T, [usize; 3])) {
+        self.stage_forward(ws);
+        self.stage_product(ws);
+        self.stage_inverse(ws, visit);
+    }
+
+    /// Stage 1: r2c along z and FFT along y of the source grid (pruned to the occupied
+    /// rows and planes). Destroys the source grid (realfft uses it as scratch).
+    pub fn stage_forward(&self, ws: &mut Workspace<T>) {
+        let t0 = Instant::now();
+        let nsx = ws.ns[0];
+        self.forward_zy(ws);
+        // DC bins along y and z: per-x sums of the source grid. Their total is the number of
+        // occupied cells (up to rounding: pad it for the error bound).
+        let dc: f64 = ws.grid[..nsx]
+            .iter()
+            .map(|c| c.re.to_f64().unwrap_or(f64::INFINITY).abs())
+            .sum();
+        ws.occupied_estimate = dc * (1.0 + 1e-4) + 1.0;
+        ws.t_forward += t0.elapsed();
+    }
+
+    /// Stage 2: FFT along x, product with the conjugate kernel spectrum, inverse along x.
+    pub fn stage_product(&self, ws: &mut Workspace<T>) {
+        let t1 = Instant::now();
+        let [lx, ly, _] = self.geo.fft_len;
+        let kz = self.geo.kz();
+        for y in 0..ly {
+            let range = y * kz * lx..(y + 1) * kz * lx;
+            let block = &mut ws.grid[range.clone()];
+            self.fft_x.process_with_scratch(block, &mut ws.scratch);
+            multiply_spectra(block, &self.kernel[range]);
+            self.ifft_x.process_with_scratch(block, &mut ws.scratch);
+        }
+        ws.t_product += t1.elapsed();
+    }
+
+    /// Stage 3: inverse FFT along y and c2r along z (pruned to the valid offsets), each
+    /// output handed to `visit` in x-major C order of the offsets.
+    pub fn stage_inverse(&self, ws: &mut Workspace<T>, mut visit: impl FnMut(T, [usize; 3])) {
+        let [lx, ly, lz] = self.geo.fft_len;
+        let kz = self.geo.kz();
+        let [cx, cy, cz] = self.geo.center;
+        let [nsx, nsy, nsz] = ws.ns;
+        let t2 = Instant::now();
+        // Offset a maps to circular index (a − C) mod L: the valid offsets of one axis are
+        // two contiguous runs of the output, [L − C, L) then [0, NS − C).
+        let wrap = |a: usize, c: usize, l: usize| if a >= c { a - c } else { a + l - c };
+        let first = cz.min(nsz);
+        let (z_tail, z_head) = ((lz - cz)..(lz - cz + first), 0..(nsz - first));
+        let mut jxs = [0usize; X_BLOCK];
+        let mut a0 = 0;
+        while a0 < nsx {
+            let nb = X_BLOCK.min(nsx - a0);
+            for (b, j) in jxs.iter_mut().enumerate().take(nb) {
+                *j = wrap(a0 + b, cx, lx);
+            }
+            for k in 0..kz {
+                for y in 0..ly {
+                    let line = &ws.grid[(y * kz + k) * lx..(y * kz + k + 1) * lx];
+                    for (b, &j) in jxs.iter().enumerate().take(nb) {
+                        ws.slab[(b * kz + k) * ly + y] = line[j];
+                    }
+                }
+            }
+            self.ifft_y
+                .process_with_scratch(&mut ws.slab[..nb * kz * ly], &mut ws.scratch);
+            for b in 0..nb {
+                let ax = a0 + b;
+                for ay in 0..nsy {
+                    let jy = wrap(ay, cy, ly);
+                    for k in 0..kz {
+                        ws.zrow[k] = ws.slab[(b * kz + k) * ly + jy];
+                    }
+                    // The result is real: DC and Nyquist bins have no imaginary part.
+                    ws.zrow[0].im = T::zero();
+                    ws.zrow[kz - 1].im = T::zero();
+                    self.c2r
+                        .process_with_scratch(&mut ws.zrow, &mut ws.rrow, &mut ws.scratch)
+                        .expect("c2r lengths match the plan");
+                    let row = ws.rrow[z_tail.clone()]
+                        .iter()
+                        .chain(&ws.rrow[z_head.clone()]);
+                    for (az, &v) in row.enumerate() {
+                        visit(v, [ax, ay, az]);
+                    }
+                }
+            }
+            a0 += nb;
+        }
+        ws.t_inverse += t2.elapsed();
+    }
+}
+
+/// `a[i] ← a[i]·b[i]` (complex), compiled for the widest vector unit the CPU has.
+fn multiply_spectra<T: Real>(a: &mut [Complex<T>], b: &[Complex<T>]) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if std::arch::is_x86_feature_detected!("avx512f") {
+            // SAFETY: the CPU has AVX-512F (checked just above).
+            return unsafe { multiply_spectra_avx512(a, b) };
+        }
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU has AVX2 (checked just above).
+            return unsafe { multiply_spectra_avx2(a, b) };
+        }
+    }
+    multiply_spectra_body(a, b)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+fn multiply_spectra_avx512<T: Real>(a: &mut [Complex<T>], b: &[Complex<T>]) {
+    multiply_spectra_body(a, b)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn multiply_spectra_avx2<T: Real>(a: &mut [Complex<T>], b: &[Complex<T>]) {
+    multiply_spectra_body(a, b)
+}
+
+/// Written out (no FMA: Rust never contracts, so every target gives the same bits).
+#[inline(always)]
+fn multiply_spectra_body<T: Real>(a: &mut [Complex<T>], b: &[Complex<T>]) {
+    for (x, y) in a.iter_mut().zip(b) {
+        let re = x.re * y.re - x.im * y.im;
+        let im = x.re * y.im + x.im * y.re;
+        *x = Complex::new(re, im);
+    }
+}
+
+impl CpuCorrelator<f64> {
     /// Correlate the workspace's grid with the kernel and return the best offset: the largest
     /// match score, ties to the lowest offset in x-major C order.
-    pub fn best_offset(&self, ws: &mut Workspace) -> BestOffset {
+    pub fn best_offset(&self, ws: &mut Workspace<f64>) -> BestOffset {
         let mut best = BestOffset {
             match_score: i64::MIN,
             offset: [0; 3],
         };
-        self.correlate(ws, |m, a| {
+        self.exact_scores(ws, |m, a| {
             if m > best.match_score {
                 best = BestOffset {
                     match_score: m,
@@ -359,74 +634,21 @@ impl CpuCorrelator {
     }
 
     /// Every match score `m(a)`, in x-major C order over `a ∈ [0, NS)` (for tests and tools).
-    pub fn all_scores(&self, ws: &mut Workspace) -> Vec<i64> {
+    pub fn all_scores(&self, ws: &mut Workspace<f64>) -> Vec<i64> {
         let mut out = Vec::with_capacity(ws.ns.iter().product());
-        self.correlate(ws, |m, _| out.push(m));
+        self.exact_scores(ws, |m, _| out.push(m));
         out
     }
 
-    fn correlate(&self, ws: &mut Workspace, mut visit: impl FnMut(i64, [usize; 3])) {
-        let [lx, ly, lz] = self.geo.fft_len;
-        let kz = self.geo.kz();
-        let [cx, cy, cz] = self.geo.center;
-        let [nsx, nsy, nsz] = ws.ns;
-        let t0 = Instant::now();
-        self.forward_zy(ws);
-        let t1 = Instant::now();
-        for y in 0..ly {
-            let range = y * kz * lx..(y + 1) * kz * lx;
-            let block = &mut ws.grid[range.clone()];
-            self.fft_x.process_with_scratch(block, &mut ws.scratch);
-            for (g, k) in block.iter_mut().zip(&self.kernel[range]) {
-                *g *= *k;
-            }
-            self.ifft_x.process_with_scratch(block, &mut ws.scratch);
-        }
-        let t2 = Instant::now();
+    /// The outputs rounded to the integers they equal; records the largest rounding.
+    fn exact_scores(&self, ws: &mut Workspace<f64>, mut visit: impl FnMut(i64, [usize; 3])) {
         let mut max_err = ws.max_rounding_error;
-        let mut a0 = 0;
-        while a0 < nsx {
-            let nb = X_BLOCK.min(nsx - a0);
-            let jx = |b: usize| (a0 + b + lx - cx) % lx;
-            for y in 0..ly {
-                for k in 0..kz {
-                    let base = (y * kz + k) * lx;
-                    for b in 0..nb {
-                        ws.slab[(b * kz + k) * ly + y] = ws.grid[base + jx(b)];
-                    }
-                }
-            }
-            self.ifft_y
-                .process_with_scratch(&mut ws.slab[..nb * kz * ly], &mut ws.scratch);
-            for b in 0..nb {
-                let ax = a0 + b;
-                for ay in 0..nsy {
-                    let jy = (ay + ly - cy) % ly;
-                    for k in 0..kz {
-                        ws.zrow[k] = ws.slab[(b * kz + k) * ly + jy];
-                    }
-                    // The result is real: DC and Nyquist bins have no imaginary part.
-                    ws.zrow[0].im = 0.0;
-                    ws.zrow[kz - 1].im = 0.0;
-                    self.c2r
-                        .process_with_scratch(&mut ws.zrow, &mut ws.rrow, &mut ws.scratch)
-                        .expect("c2r lengths match the plan");
-                    for az in 0..nsz {
-                        let jz = (az + lz - cz) % lz;
-                        let v = ws.rrow[jz];
-                        let m = round_small(v);
-                        max_err = max_err.max((v - m).abs());
-                        visit(m as i64, [ax, ay, az]);
-                    }
-                }
-            }
-            a0 += nb;
-        }
+        self.correlate(ws, |v, a| {
+            let m = round_small(v);
+            max_err = max_err.max((v - m).abs());
+            visit(m as i64, a);
+        });
         ws.max_rounding_error = max_err;
-        let t3 = Instant::now();
-        ws.t_forward += t1 - t0;
-        ws.t_product += t2 - t1;
-        ws.t_inverse += t3 - t2;
     }
 }
 
@@ -509,18 +731,22 @@ mod tests {
     #[test]
     fn smooth_lengths() {
         assert_eq!(fast_len(11, false), 12);
-        assert_eq!(fast_len(13, true), 14);
-        assert_eq!(fast_len(97, false), 98);
+        assert_eq!(fast_len(13, true), 16);
+        assert_eq!(fast_len(97, false), 108);
+        assert_eq!(fast_len(55, true), 64);
+        assert_eq!(fast_len(25, false), 27);
+        assert_eq!(fast_len(27, true), 32);
         assert_eq!(fast_len(1, true), 2);
-        assert!(is_7_smooth(2 * 3 * 5 * 7 * 7));
-        assert!(!is_7_smooth(22));
+        assert!(is_3_smooth(2 * 2 * 3 * 3 * 3));
+        assert!(!is_3_smooth(2 * 3 * 5));
+        assert!(!is_3_smooth(0));
     }
 
     #[test]
     fn byte_counts_saturate_instead_of_wrapping() {
         let g = Geometry::new([9_000_000; 3], [9_000_000; 3]);
-        assert_eq!(g.kernel_bytes(), u64::MAX);
-        assert_eq!(g.workspace_bytes(), u64::MAX);
+        assert_eq!(g.kernel_bytes(8), u64::MAX);
+        assert_eq!(g.workspace_bytes(4), u64::MAX);
     }
 
     #[test]
@@ -545,6 +771,55 @@ mod tests {
             let s = occupancy(sd, &sbits);
             let k = occupancy(kd, &kbits);
             prop_assert_eq!(fft_scores(&s, &k), brute_force_scores(&s, &k));
+        }
+    }
+
+    /// f32 outputs stay within the proven bound of the exact scores, on every offset, and
+    /// the bound is small enough to be useful (far below the score range).
+    #[test]
+    fn f32_outputs_are_within_the_error_bound() {
+        let mut next = crate::test_rng::uniform(41);
+        for case in 0..6 {
+            let n = 6 + 4 * case;
+            let kd = [n, n + 3, n - 2];
+            let sd = [n - 1, n + 1, n];
+            let rand_occ = |dims: [usize; 3], p: f64, next: &mut dyn FnMut() -> f64| Occupancy {
+                dims,
+                cells: (0..dims.iter().product::<usize>())
+                    .map(|_| next() < p)
+                    .collect(),
+            };
+            let k = rand_occ(kd, 0.3, &mut next);
+            let src = rand_occ(sd, 0.2, &mut next);
+            let exact = fft_scores(&src, &k);
+            let geo = Geometry::new(k.dims, src.dims);
+            let c = CpuCorrelator::<f32>::new(geo, &k);
+            let mut ws = c.workspace();
+            ws.begin(src.dims);
+            for i in 0..sd[0] {
+                for j in 0..sd[1] {
+                    for l in 0..sd[2] {
+                        if src.get(i, j, l) {
+                            ws.set(i, j, l);
+                        }
+                    }
+                }
+            }
+            let mut values = Vec::new();
+            c.correlate(&mut ws, |v, _| values.push(v as f64));
+            let bound = c.error_bound(ws.occupied_estimate);
+            let occupied = src.occupied() as f64;
+            assert!(ws.occupied_estimate >= occupied && ws.occupied_estimate < occupied + 2.0);
+            let worst = values
+                .iter()
+                .zip(&exact)
+                .map(|(v, &m)| (v - m as f64).abs())
+                .fold(0.0, f64::max);
+            assert!(worst <= bound, "case {case}: error {worst} > bound {bound}");
+            assert!(bound < 0.05 * (5 * k.occupied()) as f64, "bound {bound}");
+            let approx = c.approx_best(&mut ws);
+            let best = *exact.iter().max().unwrap() as f64;
+            assert!(approx.lower() <= best && best <= approx.upper());
         }
     }
 

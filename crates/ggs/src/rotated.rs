@@ -7,6 +7,7 @@
 //! Cluster order also keeps voxel writes local. Occupancy does not depend on point order.
 
 use crate::cloud::{Cloud, Point};
+use crate::correlate::Real;
 
 /// `row · p`, the one expression used for every rotated coordinate.
 #[inline(always)]
@@ -29,6 +30,10 @@ pub struct RotatableCloud {
     pub centroid: Point,
     /// `X − c_x`, grouped by cluster.
     pub points: Vec<Point>,
+    /// The same points as three coordinate arrays (for the vectorized voxelization).
+    xs: Vec<f64>,
+    ys: Vec<f64>,
+    zs: Vec<f64>,
     clusters: Vec<Cluster>,
     /// Absolute slack added to cluster bounds to cover float rounding.
     margin: f64,
@@ -91,6 +96,9 @@ impl RotatableCloud {
             .fold(0.0, f64::max);
         RotatableCloud {
             centroid: c,
+            xs: points.iter().map(|p| p[0]).collect(),
+            ys: points.iter().map(|p| p[1]).collect(),
+            zs: points.iter().map(|p| p[2]).collect(),
             points,
             clusters,
             margin: 1e-9 * (scale + 1e-300),
@@ -135,6 +143,160 @@ impl RotatableCloud {
             }
         }
         (lo, hi)
+    }
+}
+
+/// Points per vectorized block of [`RotatableCloud::voxelize`] (two AVX-512 registers of
+/// f64: two independent dependency chains).
+const LANES: usize = 16;
+
+/// `1.5·2^52`: for `0 ≤ v < 2^51`, `(v + MAGIC) − MAGIC` is `v` rounded to the nearest integer.
+const MAGIC: f64 = 6_755_399_441_055_744.0;
+
+impl RotatableCloud {
+    /// Voxelize the rotated cloud: for every point `p`, mark the cell
+    /// `floor((R·p − min) / s)` of `grid` (cell `(i, j, k)` at `i·sx + j·sy + k`) with 1.0.
+    ///
+    /// `min` must be the per-axis minimum of `R·p` computed by [`RotatableCloud::range`] (the
+    /// same float expression, so every coordinate is ≥ 0) and the grid must hold every cell.
+    /// Bit-identical to [`voxel::cell_fast`](crate::voxel::cell_fast) of [`dot_row`] per point:
+    /// blocks of 16 points take the floor as `round(v) − [round(v) > v]` (exact for
+    /// `0 ≤ v < 2^51`) and the flat index in f64 (exact below 2^53) so the compiler can keep
+    /// the arithmetic in vector registers; a block with a coordinate within the tolerance
+    /// of a cell boundary is redone point by point with the exact quotient.
+    pub fn voxelize<T: Real>(
+        &self,
+        r: &[[f64; 3]; 3],
+        min: &Point,
+        s: f64,
+        grid: &mut [T],
+        sx: usize,
+        sy: usize,
+    ) {
+        #[cfg(target_arch = "x86_64")]
+        {
+            if std::arch::is_x86_feature_detected!("avx512f") {
+                // SAFETY: the CPU has AVX-512F (checked just above), the only requirement of
+                // `voxelize_avx512`.
+                return unsafe { self.voxelize_avx512::<T>(r, min, s, grid, sx, sy) };
+            }
+            if std::arch::is_x86_feature_detected!("avx2") {
+                // SAFETY: the CPU has AVX2 (checked just above).
+                return unsafe { self.voxelize_avx2::<T>(r, min, s, grid, sx, sy) };
+            }
+        }
+        self.voxelize_body(r, min, s, grid, sx, sy)
+    }
+
+    /// [`RotatableCloud::voxelize`] compiled for AVX-512 (8 f64 lanes; 3.3× faster than the
+    /// SSE2 baseline on the bunny pair). No FMA contraction happens (Rust never fuses
+    /// `a·b + c` by itself), so results are bit-identical to the baseline.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f")]
+    fn voxelize_avx512<T: Real>(
+        &self,
+        r: &[[f64; 3]; 3],
+        min: &Point,
+        s: f64,
+        grid: &mut [T],
+        sx: usize,
+        sy: usize,
+    ) {
+        self.voxelize_body(r, min, s, grid, sx, sy)
+    }
+
+    /// [`RotatableCloud::voxelize`] compiled for AVX2 (4 f64 lanes).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn voxelize_avx2<T: Real>(
+        &self,
+        r: &[[f64; 3]; 3],
+        min: &Point,
+        s: f64,
+        grid: &mut [T],
+        sx: usize,
+        sy: usize,
+    ) {
+        self.voxelize_body(r, min, s, grid, sx, sy)
+    }
+
+    #[inline(always)]
+    fn voxelize_body<T: Real>(
+        &self,
+        r: &[[f64; 3]; 3],
+        min: &Point,
+        s: f64,
+        grid: &mut [T],
+        sx: usize,
+        sy: usize,
+    ) {
+        let inv = 1.0 / s;
+        let n = self.points.len();
+        // Flat indices go through u32 in the vector loop (one conversion instruction).
+        let full = if grid.len() <= u32::MAX as usize {
+            n - n % LANES
+        } else {
+            0
+        };
+        let (fsx, fsy) = (sx as f64, sy as f64);
+        let mut i = 0;
+        while i < full {
+            let xs = &self.xs[i..i + LANES];
+            let ys = &self.ys[i..i + LANES];
+            let zs = &self.zs[i..i + LANES];
+            let mut index = [0u32; LANES];
+            let mut near_boundary = [false; LANES];
+            for l in 0..LANES {
+                let p = [xs[l], ys[l], zs[l]];
+                let mut cells = [0.0f64; 3];
+                let mut near = false;
+                for d in 0..3 {
+                    let v = (dot_row(&r[d], &p) - min[d]) * inv;
+                    let nearest = (v + MAGIC) - MAGIC;
+                    let floor = if nearest > v { nearest - 1.0 } else { nearest };
+                    let f = v - floor;
+                    let tol = 1e-9 + 8.0 * f64::EPSILON * v;
+                    near |= !(f > tol && f < 1.0 - tol);
+                    cells[d] = floor;
+                }
+                index[l] = (cells[0] * fsx + cells[1] * fsy + cells[2]) as u32;
+                near_boundary[l] = near;
+            }
+            if near_boundary.iter().any(|&b| b) {
+                for l in 0..LANES {
+                    self.mark_exact(i + l, r, min, s, inv, grid, sx, sy);
+                }
+            } else {
+                for v in index {
+                    grid[v as usize] = T::one();
+                }
+            }
+            i += LANES;
+        }
+        for k in full..n {
+            self.mark_exact(k, r, min, s, inv, grid, sx, sy);
+        }
+    }
+
+    /// Scalar path of [`RotatableCloud::voxelize`] for point `k`.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn mark_exact<T: Real>(
+        &self,
+        k: usize,
+        r: &[[f64; 3]; 3],
+        min: &Point,
+        s: f64,
+        inv: f64,
+        grid: &mut [T],
+        sx: usize,
+        sy: usize,
+    ) {
+        let p = &self.points[k];
+        let i = crate::voxel::cell_fast(dot_row(&r[0], p) - min[0], s, inv);
+        let j = crate::voxel::cell_fast(dot_row(&r[1], p) - min[1], s, inv);
+        let l = crate::voxel::cell_fast(dot_row(&r[2], p) - min[2], s, inv);
+        grid[i * sx + j * sy + l] = T::one();
     }
 }
 

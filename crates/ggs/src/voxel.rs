@@ -54,6 +54,48 @@ pub fn cell_fast(p: f64, voxel: f64, inv: f64) -> usize {
     }
 }
 
+/// One point per occupied cell of edge `cell` (cells anchored at the points' minimum): the
+/// mean of the points in it, in increasing cell order (x-major). Deterministic: the order of
+/// the input points changes only the last bits of the means, through summation order.
+pub fn cell_centroids(points: &[[f64; 3]], cell: f64) -> Vec<[f64; 3]> {
+    if points.is_empty() {
+        return Vec::new();
+    }
+    let mut min = [f64::INFINITY; 3];
+    for p in points {
+        for d in 0..3 {
+            min[d] = min[d].min(p[d]);
+        }
+    }
+    let key = |p: &[f64; 3]| -> [u64; 3] {
+        std::array::from_fn(|d| ((p[d] - min[d]) / cell).floor().max(0.0) as u64)
+    };
+    let mut keyed: Vec<([u64; 3], usize)> = points
+        .iter()
+        .enumerate()
+        .map(|(i, p)| (key(p), i))
+        .collect();
+    keyed.sort_unstable();
+    let mut out = Vec::new();
+    let mut start = 0;
+    while start < keyed.len() {
+        let mut end = start + 1;
+        while end < keyed.len() && keyed[end].0 == keyed[start].0 {
+            end += 1;
+        }
+        let n = (end - start) as f64;
+        let mut sum = [0.0; 3];
+        for &(_, i) in &keyed[start..end] {
+            for d in 0..3 {
+                sum[d] += points[i][d];
+            }
+        }
+        out.push(sum.map(|v| v / n));
+        start = end;
+    }
+    out
+}
+
 /// A dense occupancy grid, x-major C order (z fastest).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Occupancy {

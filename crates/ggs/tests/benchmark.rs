@@ -183,6 +183,8 @@ fn config() -> RunConfig {
         max_rre_deg: 10.0,
         max_rte: Some(0.01),
         default_voxel: None,
+        mode: ggs::search::SearchMode::Exhaustive,
+        precision: ggs::search::Precision::Mixed,
     }
 }
 

@@ -7,7 +7,9 @@ use common::Lcg;
 use ggs::io::read_cloud;
 use ggs::metrics::{rre, rte};
 use ggs::rotations::RotationSet;
-use ggs::search::{coarse_register, SearchConfig, SearchResult};
+use ggs::search::{
+    coarse_register, CoarseToFine, Precision, SearchConfig, SearchMode, SearchResult,
+};
 use ggs::{Cloud, Rigid};
 use nalgebra::Vector3;
 use proptest::prelude::*;
@@ -241,4 +243,155 @@ fn georeferenced_coordinates_give_the_same_answer() {
         "{}",
         rte(&a.transform, &back)
     );
+}
+
+fn with_mode(voxel: f64, mode: SearchMode, precision: Precision, top_k: usize) -> SearchConfig {
+    SearchConfig {
+        top_k,
+        mode,
+        precision,
+        threads: 2,
+        ..SearchConfig::with_voxel(voxel)
+    }
+}
+
+/// A partial, noisy, rotated copy: the target drops a fifth of the points and gets 60 the
+/// source does not have (uniform in its box), so scores are not a perfect overlap.
+fn partial_pair(seed: u64) -> (Cloud, Cloud) {
+    let source = random_cloud(seed, 400);
+    let mut r = Lcg(seed ^ 0x9e37);
+    let rot = nalgebra::Rotation3::from_euler_angles(
+        r.next_f64() * 6.0,
+        r.next_f64() * 3.0,
+        r.next_f64() * 6.0,
+    );
+    let t = Rigid::new(*rot.matrix(), Vector3::new(0.3, -0.2, 0.1));
+    let mut pts: Vec<[f64; 3]> = source
+        .transformed(&t)
+        .points
+        .into_iter()
+        .enumerate()
+        .filter(|(i, _)| i % 5 != 0)
+        .map(|(_, p)| p)
+        .collect();
+    let b = Cloud::new(pts.clone()).aabb().unwrap();
+    let e = b.extent();
+    for _ in 0..60 {
+        pts.push(std::array::from_fn(|d| b.min[d] + e[d] * r.next_f64()));
+    }
+    (source, Cloud::new(pts))
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(8))]
+    /// f32 scoring with error bounds and f64 re-scoring picks exactly what f64 picks: the
+    /// winner, the top-k distinct hypotheses and the runner-up.
+    #[test]
+    fn mixed_precision_picks_equal_f64(seed in 1u64..u64::MAX) {
+        let (source, target) = partial_pair(seed);
+        let run = |p| {
+            coarse_register(&source, &target, limited15(),
+                &with_mode(0.07, SearchMode::Exhaustive, p, 4)).unwrap()
+        };
+        let mixed = run(Precision::Mixed);
+        let exact = run(Precision::F64);
+        assert_identical(&mixed, &exact);
+        prop_assert!(mixed.rescored >= 1);
+        prop_assert_eq!(exact.rescored, 0);
+    }
+}
+
+#[test]
+fn mixed_precision_equals_f64_on_the_bundled_bunny() {
+    let dir = common::repo_root().join("tests/data");
+    let source = read_cloud(&dir.join("bun0.pcd"), None).unwrap().cloud;
+    let target = read_cloud(&dir.join("bun4.pcd"), None).unwrap().cloud;
+    let run = |p| {
+        coarse_register(
+            &source,
+            &target,
+            limited15(),
+            &with_mode(0.006, SearchMode::Exhaustive, p, 5),
+        )
+        .unwrap()
+    };
+    assert_identical(&run(Precision::Mixed), &run(Precision::F64));
+}
+
+#[test]
+fn coarse_to_fine_finds_the_exhaustive_answer() {
+    let dir = common::repo_root().join("tests/data");
+    let source = read_cloud(&dir.join("bun0.pcd"), None).unwrap().cloud;
+    let target = read_cloud(&dir.join("bun4.pcd"), None).unwrap().cloud;
+    let c2f = SearchMode::CoarseToFine(CoarseToFine::default());
+    for set in [limited15(), ico()] {
+        let full = coarse_register(
+            &source,
+            &target,
+            set,
+            &with_mode(0.006, SearchMode::Exhaustive, Precision::Mixed, 1),
+        )
+        .unwrap();
+        let fast = coarse_register(
+            &source,
+            &target,
+            set,
+            &with_mode(0.006, c2f, Precision::Mixed, 1),
+        )
+        .unwrap();
+        assert_eq!(fast.rotation_index, full.rotation_index);
+        assert_eq!(fast.offset, full.offset);
+        assert_eq!(fast.score, full.score);
+        assert_eq!(fast.transform.to_rows(), full.transform.to_rows());
+        assert!(
+            fast.scored < set.len() / 4,
+            "{} of {}",
+            fast.scored,
+            set.len()
+        );
+        let level = fast.coarse_level.unwrap();
+        assert_eq!(level.voxel, 0.012);
+        assert!(level.kept >= 16);
+    }
+}
+
+#[test]
+fn coarse_to_fine_recovers_grid_rotations() {
+    let c2f = SearchMode::CoarseToFine(CoarseToFine::default());
+    for (seed, k) in [(11u64, 5usize), (12, 400), (13, 1234), (14, 1885)] {
+        let source = random_cloud(seed, 300);
+        let truth = Rigid::new(limited15().matrices[k], Vector3::new(0.16, -0.08, 0.24));
+        let target = source.transformed(&truth);
+        let r = coarse_register(
+            &source,
+            &target,
+            limited15(),
+            &with_mode(0.08, c2f, Precision::Mixed, 1),
+        )
+        .unwrap();
+        assert!(rre(&r.transform, &truth) < 1e-6, "seed {seed} k {k}");
+        assert!(rte(&r.transform, &truth) < 1e-9, "seed {seed} k {k}");
+    }
+}
+
+#[test]
+fn coarse_to_fine_parameters_are_checked() {
+    let c = random_cloud(1, 50);
+    for bad in [
+        CoarseToFine {
+            factor: 0.5,
+            ..Default::default()
+        },
+        CoarseToFine {
+            keep_fraction: 1.5,
+            ..Default::default()
+        },
+        CoarseToFine {
+            neighbour_deg: Some(f64::NAN),
+            ..Default::default()
+        },
+    ] {
+        let cfg = with_mode(0.1, SearchMode::CoarseToFine(bad), Precision::Mixed, 1);
+        assert!(coarse_register(&c, &c, limited15(), &cfg).is_err());
+    }
 }

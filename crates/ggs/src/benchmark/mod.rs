@@ -138,6 +138,9 @@ pub struct RunConfig {
     pub max_rte: Option<f64>,
     /// Used when neither `voxel` nor the pair gives one.
     pub default_voxel: Option<f64>,
+    /// Exhaustive or coarse-to-fine search.
+    pub mode: crate::search::SearchMode,
+    pub precision: crate::search::Precision,
 }
 
 /// Register one pair and score it. Errors reading or registering the pair are recorded in
@@ -157,6 +160,8 @@ pub fn run_pair(pair: &BenchPair, cfg: &RunConfig) -> PairRow {
         row.read_ms = t0.elapsed().as_secs_f64() * 1e3;
         let mut search = SearchConfig::with_voxel(voxel);
         search.threads = cfg.threads;
+        search.mode = cfg.mode;
+        search.precision = cfg.precision;
         let coarse = coarse_register(&source, &target, &cfg.rotations, &search)?;
         row.coarse_ms = coarse.timings.total_ms;
         row.score = coarse.score;
