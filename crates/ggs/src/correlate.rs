@@ -465,15 +465,28 @@ impl<T: Real> CpuCorrelator<T> {
 
     /// Correlate in `T` and return the largest computed output with its error bound.
     pub fn approx_best(&self, ws: &mut Workspace<T>) -> ApproxBest {
-        let mut best = f64::NEG_INFINITY;
+        let mut best = T::neg_infinity();
         let mut offset = [0; 3];
-        self.correlate(ws, |v, a| {
-            let v = v.to_f64().unwrap_or(f64::NAN);
-            if v > best {
-                best = v;
-                offset = a;
+        self.stage_forward(ws);
+        self.stage_product(ws);
+        self.stage_inverse_rows(ws, |[ax, ay], first, second| {
+            // A branch-free (vectorizable) maximum per row; the position only when it wins.
+            let row_max = |r: &[T]| {
+                r.iter()
+                    .fold(T::neg_infinity(), |m, &v| if v > m { v } else { m })
+            };
+            let m = row_max(first).max(row_max(second));
+            if m > best {
+                best = m;
+                let az = first
+                    .iter()
+                    .chain(second)
+                    .position(|&v| v == m)
+                    .unwrap_or(0);
+                offset = [ax, ay, az];
             }
         });
+        let best = best.to_f64().unwrap_or(f64::NAN);
         ApproxBest {
             value: best,
             error_bound: self.error_bound(ws.occupied_estimate),
@@ -522,6 +535,20 @@ impl<T: Real> CpuCorrelator<T> {
     /// Stage 3: inverse FFT along y and c2r along z (pruned to the valid offsets), each
     /// output handed to `visit` in x-major C order of the offsets.
     pub fn stage_inverse(&self, ws: &mut Workspace<T>, mut visit: impl FnMut(T, [usize; 3])) {
+        self.stage_inverse_rows(ws, |[ax, ay], first, second| {
+            for (az, &v) in first.iter().chain(second).enumerate() {
+                visit(v, [ax, ay, az]);
+            }
+        });
+    }
+
+    /// [`Self::stage_inverse`] a row at a time: `visit_row([ax, ay], first, second)` gets the
+    /// outputs of offsets `(ax, ay, 0..NS_z)` as two slices, `first` then `second`.
+    fn stage_inverse_rows(
+        &self,
+        ws: &mut Workspace<T>,
+        mut visit_row: impl FnMut([usize; 2], &[T], &[T]),
+    ) {
         let [lx, ly, lz] = self.geo.fft_len;
         let kz = self.geo.kz();
         let [cx, cy, cz] = self.geo.center;
@@ -562,12 +589,7 @@ impl<T: Real> CpuCorrelator<T> {
                     self.c2r
                         .process_with_scratch(&mut ws.zrow, &mut ws.rrow, &mut ws.scratch)
                         .expect("c2r lengths match the plan");
-                    let row = ws.rrow[z_tail.clone()]
-                        .iter()
-                        .chain(&ws.rrow[z_head.clone()]);
-                    for (az, &v) in row.enumerate() {
-                        visit(v, [ax, ay, az]);
-                    }
+                    visit_row([ax, ay], &ws.rrow[z_tail.clone()], &ws.rrow[z_head.clone()]);
                 }
             }
             a0 += nb;
