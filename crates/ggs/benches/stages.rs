@@ -184,5 +184,31 @@ fn stages(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, stages);
+/// What rustfft reaches on this machine outside ggs: one large transform (2^20) and a batch
+/// of 64-point transforms (the length of the bunny's x and y axes), f32 and f64. GFLOP/s =
+/// 5·N·log2(N) per transform / time.
+fn fft_reference(c: &mut Criterion) {
+    use rustfft::{num_complex::Complex, FftPlanner};
+    fn bench<T: rustfft::FftNum + Default>(c: &mut Criterion, label: &str) {
+        let mut g = c.benchmark_group(format!("fft reference {label}"));
+        g.sample_size(20);
+        let mut planner = FftPlanner::<T>::new();
+        for (name, len, lines) in [
+            ("one 2^20-point transform", 1 << 20, 1),
+            ("16384 transforms of 64 points", 64, 16384),
+        ] {
+            let fft = planner.plan_fft_forward(len);
+            let mut buf = vec![Complex::<T>::default(); len * lines];
+            let mut scratch = vec![Complex::<T>::default(); fft.get_inplace_scratch_len()];
+            g.bench_function(name, |b| {
+                b.iter(|| fft.process_with_scratch(&mut buf, &mut scratch))
+            });
+        }
+        g.finish();
+    }
+    bench::<f32>(c, "f32");
+    bench::<f64>(c, "f64");
+}
+
+criterion_group!(benches, stages, fft_reference);
 criterion_main!(benches);
