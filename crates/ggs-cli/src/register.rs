@@ -357,8 +357,8 @@ fn print_summary(r: &SearchResult, voxel_auto: bool, read_ms: f64, total_ms: f64
     if let Some(c) = &r.coarse_level {
         let f = &c.geometry.fft_len;
         outln!(
-            "coarse      voxel {}, {} source points, FFT {}×{}×{}; kept {} of {} rotations, with neighbours within {:.1}°: {} scored at the voxel size",
-            c.voxel, c.source_points, f[0], f[1], f[2], c.kept, r.rotations, c.neighbour_deg, r.scored
+            "coarse      voxel {}, {} source points, FFT {}×{}×{}; kept {} of {} rotations ({} round(s); winner ranked {}), with neighbours within {:.1}°: {} scored at the voxel size",
+            c.voxel, c.source_points, f[0], f[1], f[2], c.kept, r.rotations, c.rounds, c.winner_rank, c.neighbour_deg, r.scored
         );
     }
     let t = &r.timings;

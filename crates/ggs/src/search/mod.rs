@@ -272,13 +272,18 @@ pub struct CoarseLevel {
     /// Source points after thinning to one per cell of a quarter of the coarse voxel.
     pub source_points: usize,
     pub geometry: Geometry,
-    /// Rotations kept by coarse score, before adding neighbours.
+    /// Rotations kept by coarse score, before adding neighbours (after the last round).
     pub kept: usize,
     pub neighbour_deg: f64,
     /// Rank (0 = best) of the final winner by coarse score: how much margin `kept` had.
     pub winner_rank: usize,
+    /// Rounds of fine scoring: `kept` doubled after each round whose winner ranked in the
+    /// lower half of it (1 when the coarse ranking was clear).
+    pub rounds: usize,
     #[serde(skip)]
     rank: Vec<usize>,
+    #[serde(skip)]
+    order: Vec<usize>,
 }
 
 fn rows(m: &Matrix3<f64>) -> [[f64; 3]; 3] {
@@ -412,44 +417,134 @@ pub fn coarse_register(
     let (pool, _) = crate::threads::pool(threads)?;
     let mut times = StageTimes::default();
 
-    // Which rotations are scored at the voxel size.
+    // Coarse level (coarse-to-fine only): every rotation ranked at a coarser voxel.
     let t_coarse = Instant::now();
-    let (indices, mut coarse_level) = match &cfg.mode {
-        SearchMode::Exhaustive => ((0..n_rot).collect::<Vec<_>>(), None),
+    let mut coarse_level = match &cfg.mode {
+        SearchMode::Exhaustive => None,
         SearchMode::CoarseToFine(c) => {
-            let (indices, level, st) =
+            let (level, st) =
                 coarse_candidates(&pool, threads, &rc, target, m_y, set, &rot_rows, cfg, c)?;
             times.add(&st);
-            (indices, Some(level))
+            Some(level)
         }
     };
     let coarse_level_ms = ms(t_coarse.elapsed());
 
-    let t_ext = Instant::now();
-    let boxes = rotated_boxes(&pool, &rc, &rot_rows, &indices, s)?;
-    let extents_ms = ms(t_ext.elapsed());
-    let geo = geometry_for(nr, &boxes);
-    let estimate = sizes.bytes(&geo);
-    if estimate > budget {
-        return Err(sizes.error(&geo, estimate, budget, s));
-    }
-
+    // Rounds at the voxel size: all rotations (exhaustive), or the kept ones and their
+    // neighbours, with `kept` doubled while the winner ranks in the lower half of it.
     let t_kernel = Instant::now();
     let kernel = target_kernel(target, m_y, s)?;
     debug_assert_eq!(kernel.dims, nr);
-    let corr64 = CpuCorrelator::<f64>::new(geo, &kernel);
-    let corr32 = match cfg.precision {
-        Precision::Mixed => Some(CpuCorrelator::<f32>::new(geo, &kernel)),
-        Precision::F64 => None,
-    };
-    let target_ms = ms(t_kernel.elapsed());
-
-    let t_search = Instant::now();
+    let mut target_ms = ms(t_kernel.elapsed());
+    let mut extents_ms = 0.0;
+    let mut boxes: Vec<Option<RotatedBox>> = vec![None; n_rot];
+    let mut scored = vec![false; n_rot];
+    let mut scores = LevelScores::new(n_rot);
+    let mut correlators: Option<(Geometry, CpuCorrelator<f64>, Option<CpuCorrelator<f32>>)> = None;
+    let mut estimate = 0;
+    let mut rescored = 0usize;
+    let mut rescore_time = Duration::ZERO;
     let progress = match cfg.mode {
         SearchMode::Exhaustive => cfg.progress.as_deref(),
         SearchMode::CoarseToFine(_) => None,
     };
-    let input = PassInput {
+    let t_search = Instant::now();
+    let mut keep = coarse_level.as_ref().map_or(n_rot, |l| l.kept);
+    let winner = loop {
+        let wanted = match &coarse_level {
+            None => (0..n_rot).collect::<Vec<_>>(),
+            Some(level) => kept_with_neighbours(level, keep, set),
+        };
+        let new: Vec<usize> = wanted.into_iter().filter(|&k| !scored[k]).collect();
+        let t_ext = Instant::now();
+        for (k, b) in rotated_boxes(&pool, &rc, &rot_rows, &new, s)?
+            .into_iter()
+            .enumerate()
+        {
+            if b.is_some() {
+                boxes[k] = b;
+            }
+        }
+        extents_ms += ms(t_ext.elapsed());
+        // FFT lengths fit the largest source scored so far; a later round with a larger one
+        // re-plans (scores do not depend on the lengths).
+        let geo = geometry_for(nr, &boxes);
+        if correlators.as_ref().is_none_or(|(g, _, _)| *g != geo) {
+            estimate = sizes.bytes(&geo);
+            if estimate > budget {
+                return Err(sizes.error(&geo, estimate, budget, s));
+            }
+            let t = Instant::now();
+            let c64 = CpuCorrelator::<f64>::new(geo, &kernel);
+            let c32 = match cfg.precision {
+                Precision::Mixed => Some(CpuCorrelator::<f32>::new(geo, &kernel)),
+                Precision::F64 => None,
+            };
+            correlators = Some((geo, c64, c32));
+            target_ms += ms(t.elapsed());
+        }
+        let (_, corr64, corr32) = correlators.as_ref().expect("planned above");
+        let input = PassInput {
+            pool: &pool,
+            threads,
+            cloud: &rc,
+            rows: &rot_rows,
+            boxes: &boxes,
+            voxel: s,
+            cancel: cfg.cancel.as_ref(),
+            progress,
+        };
+        match corr32 {
+            Some(c32) => {
+                let (found, st) = run_pass(&input, c32, &new, |c, ws| c.approx_best(ws))?;
+                times.add(&st);
+                for (&k, a) in new.iter().zip(found) {
+                    scores.approx[k] = Some(a);
+                }
+            }
+            None => {
+                let (found, st) = run_pass(&input, corr64, &new, |c, ws| c.best_offset(ws))?;
+                times.add(&st);
+                for (&k, b) in new.iter().zip(found) {
+                    scores.exact[k] = Some(b);
+                }
+            }
+        }
+        for &k in &new {
+            scored[k] = true;
+        }
+        let quiet = PassInput {
+            progress: None,
+            ..input
+        };
+        let mut rescore = |pending: &[usize], sc: &mut LevelScores| -> Result<()> {
+            let t = Instant::now();
+            let (found, st) = run_pass(&quiet, corr64, pending, |c, ws| c.best_offset(ws))?;
+            times.add(&st);
+            for (&k, b) in pending.iter().zip(found) {
+                sc.exact[k] = Some(b);
+            }
+            rescored += pending.len();
+            rescore_time += t.elapsed();
+            Ok(())
+        };
+        let w = exact_best(&mut scores, |_| true, &mut rescore)?
+            .expect("at least one rotation is scored");
+        if let Some(level) = &mut coarse_level {
+            level.rounds += 1;
+            level.kept = keep;
+            level.winner_rank = level.rank[w];
+            // A winner deep in the kept list means the coarse ranking is not clear for this
+            // pair: look twice as far.
+            if level.rank[w] * 2 > keep && scored.iter().any(|&d| !d) {
+                keep = (keep * 2).min(n_rot);
+                continue;
+            }
+        }
+        break w;
+    };
+    let (geo, corr64, _) = correlators.expect("at least one round ran");
+    let quiet = PassInput {
         pool: &pool,
         threads,
         cloud: &rc,
@@ -457,33 +552,8 @@ pub fn coarse_register(
         boxes: &boxes,
         voxel: s,
         cancel: cfg.cancel.as_ref(),
-        progress,
-    };
-    let mut scores = LevelScores::new(n_rot);
-    match &corr32 {
-        Some(c32) => {
-            let (found, st) = run_pass(&input, c32, &indices, |c, ws| c.approx_best(ws))?;
-            times.add(&st);
-            for (&k, a) in indices.iter().zip(found) {
-                scores.approx[k] = Some(a);
-            }
-        }
-        None => {
-            let (found, st) = run_pass(&input, &corr64, &indices, |c, ws| c.best_offset(ws))?;
-            times.add(&st);
-            for (&k, b) in indices.iter().zip(found) {
-                scores.exact[k] = Some(b);
-            }
-        }
-    }
-
-    // Selection: winner, then the best rotations farther than `radius` from those chosen.
-    let quiet = PassInput {
         progress: None,
-        ..input
     };
-    let mut rescored = 0usize;
-    let mut rescore_time = Duration::ZERO;
     let mut rescore = |pending: &[usize], sc: &mut LevelScores| -> Result<()> {
         let t = Instant::now();
         let (found, st) = run_pass(&quiet, &corr64, pending, |c, ws| c.best_offset(ws))?;
@@ -495,8 +565,6 @@ pub fn coarse_register(
         rescore_time += t.elapsed();
         Ok(())
     };
-    let winner =
-        exact_best(&mut scores, |_| true, &mut rescore)?.expect("at least one rotation is scored");
     let radius = cfg.distinct_radius_deg.unwrap_or(2.0 * set.step_deg);
     let far = |chosen: &[usize], k: usize| {
         chosen
@@ -511,9 +579,6 @@ pub fn coarse_register(
         }
     }
     let runner_up_index = chosen.get(1).copied();
-    if let Some(level) = &mut coarse_level {
-        level.winner_rank = level.rank[winner];
-    }
     chosen.truncate(cfg.top_k);
     let search_ms = ms(t_search.elapsed());
 
@@ -562,7 +627,7 @@ pub fn coarse_register(
         max_rounding_error: times.max_rounding_error,
         mode: cfg.mode,
         precision: cfg.precision,
-        scored: indices.len(),
+        scored: scored.iter().filter(|&&d| d).count(),
         rescored,
         coarse_level,
         fft_gflop: times.flops * 1e-9,
@@ -608,9 +673,8 @@ impl CoarseToFine {
 }
 
 /// Coarse level: score every rotation in f32 at `s0 = factor × voxel` with the source thinned
-/// to one point (the mean) per cell of `s0/4`; keep the best `keep_fraction` (at least
-/// `keep_min`) and every rotation within `neighbour_deg` of one of them. Returns the kept
-/// rotation indices in increasing order.
+/// to one point (the mean) per cell of `s0/4`, and rank them (best first, ties to the lowest
+/// index).
 #[allow(clippy::too_many_arguments)]
 fn coarse_candidates(
     pool: &rayon::ThreadPool,
@@ -622,7 +686,7 @@ fn coarse_candidates(
     rot_rows: &[[[f64; 3]; 3]],
     cfg: &SearchConfig,
     c: &CoarseToFine,
-) -> Result<(Vec<usize>, CoarseLevel, StageTimes)> {
+) -> Result<(CoarseLevel, StageTimes)> {
     let s0 = cfg.voxel * c.factor;
     let n = rot_rows.len();
     let thinned = Cloud::new(voxel::cell_centroids(&fine.points, s0 / 4.0));
@@ -648,30 +712,12 @@ fn coarse_candidates(
     let keep = ((n as f64 * c.keep_fraction).ceil() as usize)
         .max(c.keep_min)
         .clamp(1, n);
-    let kept = &order[..keep];
     let neighbour_deg = c.neighbour_deg.unwrap_or(set.step_deg * 1.01);
-    let mut selected = vec![false; n];
-    for &k in kept {
-        selected[k] = true;
-    }
-    let near_kept: Vec<usize> = (0..n)
-        .filter(|&k| {
-            !selected[k]
-                && kept.iter().any(|&j| {
-                    rotation_angle_deg(&set.matrices[j], &set.matrices[k]) <= neighbour_deg
-                })
-        })
-        .collect();
-    for k in near_kept {
-        selected[k] = true;
-    }
-    let indices = (0..n).filter(|&k| selected[k]).collect();
     let mut rank = vec![0; n];
     for (r, &k) in order.iter().enumerate() {
         rank[k] = r;
     }
     Ok((
-        indices,
         CoarseLevel {
             voxel: s0,
             source_points: thinned.len(),
@@ -679,8 +725,35 @@ fn coarse_candidates(
             kept: keep,
             neighbour_deg,
             winner_rank: 0,
+            rounds: 0,
             rank,
+            order,
         },
         times,
     ))
+}
+
+/// The `keep` best rotations of the coarse order and every rotation within
+/// `neighbour_deg` of one of them, in increasing index order. A keep of a quarter of the set
+/// or more takes the whole set.
+fn kept_with_neighbours(level: &CoarseLevel, keep: usize, set: &RotationSet) -> Vec<usize> {
+    let n = level.order.len();
+    if keep * 4 >= n {
+        return (0..n).collect();
+    }
+    let kept = &level.order[..keep];
+    let mut selected = vec![false; n];
+    for &k in kept {
+        selected[k] = true;
+    }
+    for k in 0..n {
+        if !selected[k]
+            && kept.iter().any(|&j| {
+                rotation_angle_deg(&set.matrices[j], &set.matrices[k]) <= level.neighbour_deg
+            })
+        {
+            selected[k] = true;
+        }
+    }
+    (0..n).filter(|&k| selected[k]).collect()
 }
