@@ -207,9 +207,11 @@ pub fn quantile(values: &mut [f64], q: f64) -> f64 {
 /// The `q` quantile of the positive distances from each moved source point `T·p` to its
 /// nearest target point (`None` when every distance is 0). Most source points of a coarse
 /// alignment lie within a few point spacings of the target: those are found on a grid of
-/// radius `R` (the target's median k-th-neighbour distance), the others only count as
-/// "farther than `R`" unless the quantile falls among them, when the k-d tree measures them.
-/// The result equals the all-tree computation.
+/// radius `R` (the target's median k-th-neighbour distance); the others only count as
+/// "farther than `R`" unless the quantile falls among them, when the points not found yet are
+/// searched again within `2R`, `4R`, … (at most [`QUANTILE_ROUNDS`] times) and, if the
+/// quantile still falls beyond, measured by the k-d tree. Every distance found is the exact
+/// nearest-neighbour distance, so the result equals the all-tree computation.
 fn nearest_distance_quantile(
     src: &[Point],
     t: &Rigid,
@@ -218,34 +220,48 @@ fn nearest_distance_quantile(
     k: usize,
     q: f64,
 ) -> Option<f64> {
-    let near =
-        grid::median_kth_distance(tgt, tindex, k).map(|r| RadiusSearch::new(tgt, r, Some(tindex)));
-    let nearest = |p: &Point, exact: bool| -> f64 {
-        let m = t.apply(p);
-        match (&near, exact) {
-            (Some(g), false) => g.nearest(&m).map_or(f64::INFINITY, |n| n.1.sqrt()),
-            _ => tindex.nearest(&m).1.sqrt(),
-        }
+    let moved: Vec<Point> = src.iter().map(|p| t.apply(p)).collect();
+    let mut dist = vec![f64::INFINITY; moved.len()];
+    let mut pending: Vec<usize> = (0..moved.len()).collect();
+    let positive_quantile = |dist: &[f64]| -> Option<f64> {
+        let mut d: Vec<f64> = dist.iter().copied().filter(|&d| d > 0.0).collect();
+        (!d.is_empty()).then(|| quantile(&mut d, q))
     };
-    let mut d: Vec<f64> = src
-        .par_iter()
-        .map(|p| nearest(p, false))
-        .filter(|&d| d > 0.0)
-        .collect();
-    if d.is_empty() {
-        return None;
+    if let Some(r0) = grid::median_kth_distance(tgt, tindex, k) {
+        let mut r = r0;
+        for _ in 0..QUANTILE_ROUNDS {
+            let search = RadiusSearch::new(tgt, r, Some(tindex));
+            let found: Vec<Option<f64>> = pending
+                .par_iter()
+                .map(|&i| search.nearest(&moved[i]).map(|n| n.1.sqrt()))
+                .collect();
+            let mut still = Vec::new();
+            for (&i, d) in pending.iter().zip(found) {
+                match d {
+                    Some(d) => dist[i] = d,
+                    None => still.push(i),
+                }
+            }
+            pending = still;
+            match positive_quantile(&dist) {
+                None => return None,
+                Some(v) if v.is_finite() => return Some(v),
+                Some(_) => r *= 2.0,
+            }
+        }
     }
-    let v = quantile(&mut d, q);
-    if v.is_finite() {
-        return Some(v);
-    }
-    let mut d: Vec<f64> = src
+    let exact: Vec<f64> = pending
         .par_iter()
-        .map(|p| nearest(p, true))
-        .filter(|&d| d > 0.0)
+        .map(|&i| tindex.nearest(&moved[i]).1.sqrt())
         .collect();
-    (!d.is_empty()).then(|| quantile(&mut d, q))
+    for (&i, d) in pending.iter().zip(exact) {
+        dist[i] = d;
+    }
+    positive_quantile(&dist)
 }
+
+/// Radius doublings of [`nearest_distance_quantile`] before the k-d tree measures the rest.
+const QUANTILE_ROUNDS: usize = 4;
 
 /// Per-iteration statistics at the current pose.
 #[derive(Default, Clone, Copy)]
@@ -578,5 +594,44 @@ fn quality(
         stop_reason,
         information_eigenvalues: eig,
         degenerate,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The grid rounds (R, 2R, …) and the tree give exactly the all-tree quantile, whether the
+    /// quantile falls near (first round), farther out (a later round) or beyond every round.
+    #[test]
+    fn distance_quantile_equals_the_all_tree_computation() {
+        let mut next = crate::test_rng::uniform(9);
+        let tgt: Vec<Point> = (0..3000).map(|_| [next(), next(), 0.2 * next()]).collect();
+        let tindex = PointIndex::new(&tgt);
+        for (shift, q) in [
+            (0.0, 0.25),
+            (0.05, 0.25),
+            (0.3, 0.5),
+            (0.3, 0.9),
+            (3.0, 0.25),
+            (3.0, 0.9),
+            (0.02, 0.9),
+        ] {
+            let src: Vec<Point> = (0..2000)
+                .map(|i| {
+                    let far = if i % 3 == 0 { shift } else { 0.0 };
+                    [next() + far, next(), 0.2 * next() + 0.01]
+                })
+                .collect();
+            let t = Rigid::identity();
+            let mut all: Vec<f64> = src
+                .iter()
+                .map(|p| tindex.nearest(p).1.sqrt())
+                .filter(|&d| d > 0.0)
+                .collect();
+            let expected = quantile(&mut all, q);
+            let got = nearest_distance_quantile(&src, &t, &tgt, &tindex, 20, q).unwrap();
+            assert_eq!(got.to_bits(), expected.to_bits(), "shift {shift} q {q}");
+        }
     }
 }
