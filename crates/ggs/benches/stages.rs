@@ -78,8 +78,7 @@ fn voxelized<T: Real>(
 ) -> Workspace<T> {
     let mut ws = corr.workspace();
     ws.begin(p.dims[k]);
-    let (grid, sy, sx) = ws.grid_mut();
-    rc.voxelize(&p.rows[k], &p.mins[k], VOXEL, grid, sx, sy);
+    rc.voxelize(&p.rows[k], &p.mins[k], VOXEL, ws.grid_mut());
     ws
 }
 
@@ -92,8 +91,7 @@ fn per_rotation_stages<T: Real>(c: &mut Criterion, label: &str, rc: &RotatableCl
         let mut ws = corr.workspace();
         b.iter(|| {
             ws.begin(p.dims[k]);
-            let (grid, sy, sx) = ws.grid_mut();
-            rc.voxelize(&p.rows[k], &p.mins[k], VOXEL, grid, sx, sy);
+            rc.voxelize(&p.rows[k], &p.mins[k], VOXEL, ws.grid_mut());
         })
     });
     let fresh = voxelized(rc, p, &corr, k);
@@ -150,8 +148,7 @@ fn stages(c: &mut Criterion) {
         b.iter(|| {
             for k in 0..p.rows.len() {
                 ws.begin(p.dims[k]);
-                let (grid, sy, sx) = ws.grid_mut();
-                rc.voxelize(&p.rows[k], &p.mins[k], VOXEL, grid, sx, sy);
+                rc.voxelize(&p.rows[k], &p.mins[k], VOXEL, ws.grid_mut());
             }
         })
     });

@@ -229,13 +229,16 @@ impl<T: Real> Workspace<T> {
         self.ns = ns;
     }
 
-    /// The grid buffer with its strides `(buffer, sy, sx)`: cell (i, j, k) is
-    /// `buffer[i·sx + j·sy + k]`; write 1 to mark it occupied (the fast path for
-    /// voxelizing many points).
+    /// The grid buffer with its strides: write 1 to a cell to mark it occupied (the fast
+    /// path for voxelizing many points).
     #[inline]
-    pub fn grid_mut(&mut self) -> (&mut [T], usize, usize) {
+    pub fn grid_mut(&mut self) -> crate::rotated::GridView<'_, T> {
         let lz = self.rrow.len();
-        (&mut self.real[..], lz, self.ay * lz)
+        crate::rotated::GridView {
+            cells: &mut self.real[..],
+            sx: self.ay * lz,
+            sy: lz,
+        }
     }
 
     /// Mark cell (i, j, k) of the current source grid as occupied.

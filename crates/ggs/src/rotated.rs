@@ -153,9 +153,16 @@ const LANES: usize = 16;
 /// `1.5·2^52`: for `0 ≤ v < 2^51`, `(v + MAGIC) − MAGIC` is `v` rounded to the nearest integer.
 const MAGIC: f64 = 6_755_399_441_055_744.0;
 
+/// A source grid to voxelize into: cell `(i, j, k)` is `cells[i·sx + j·sy + k]`.
+pub struct GridView<'a, T> {
+    pub cells: &'a mut [T],
+    pub sx: usize,
+    pub sy: usize,
+}
+
 impl RotatableCloud {
     /// Voxelize the rotated cloud: for every point `p`, mark the cell
-    /// `floor((R·p − min) / s)` of `grid` (cell `(i, j, k)` at `i·sx + j·sy + k`) with 1.0.
+    /// `floor((R·p − min) / s)` of `grid` with 1.
     ///
     /// `min` must be the per-axis minimum of `R·p` computed by [`RotatableCloud::range`] (the
     /// same float expression, so every coordinate is ≥ 0) and the grid must hold every cell.
@@ -164,28 +171,20 @@ impl RotatableCloud {
     /// `0 ≤ v < 2^51`) and the flat index in f64 (exact below 2^53) so the compiler can keep
     /// the arithmetic in vector registers; a block with a coordinate within the tolerance
     /// of a cell boundary is redone point by point with the exact quotient.
-    pub fn voxelize<T: Real>(
-        &self,
-        r: &[[f64; 3]; 3],
-        min: &Point,
-        s: f64,
-        grid: &mut [T],
-        sx: usize,
-        sy: usize,
-    ) {
+    pub fn voxelize<T: Real>(&self, r: &[[f64; 3]; 3], min: &Point, s: f64, grid: GridView<'_, T>) {
         #[cfg(target_arch = "x86_64")]
         {
             if std::arch::is_x86_feature_detected!("avx512f") {
                 // SAFETY: the CPU has AVX-512F (checked just above), the only requirement of
                 // `voxelize_avx512`.
-                return unsafe { self.voxelize_avx512::<T>(r, min, s, grid, sx, sy) };
+                return unsafe { self.voxelize_avx512::<T>(r, min, s, grid) };
             }
             if std::arch::is_x86_feature_detected!("avx2") {
                 // SAFETY: the CPU has AVX2 (checked just above).
-                return unsafe { self.voxelize_avx2::<T>(r, min, s, grid, sx, sy) };
+                return unsafe { self.voxelize_avx2::<T>(r, min, s, grid) };
             }
         }
-        self.voxelize_body(r, min, s, grid, sx, sy)
+        self.voxelize_body(r, min, s, grid)
     }
 
     /// [`RotatableCloud::voxelize`] compiled for AVX-512 (8 f64 lanes; 3.3× faster than the
@@ -198,11 +197,9 @@ impl RotatableCloud {
         r: &[[f64; 3]; 3],
         min: &Point,
         s: f64,
-        grid: &mut [T],
-        sx: usize,
-        sy: usize,
+        grid: GridView<'_, T>,
     ) {
-        self.voxelize_body(r, min, s, grid, sx, sy)
+        self.voxelize_body(r, min, s, grid)
     }
 
     /// [`RotatableCloud::voxelize`] compiled for AVX2 (4 f64 lanes).
@@ -213,11 +210,9 @@ impl RotatableCloud {
         r: &[[f64; 3]; 3],
         min: &Point,
         s: f64,
-        grid: &mut [T],
-        sx: usize,
-        sy: usize,
+        grid: GridView<'_, T>,
     ) {
-        self.voxelize_body(r, min, s, grid, sx, sy)
+        self.voxelize_body(r, min, s, grid)
     }
 
     #[inline(always)]
@@ -226,10 +221,13 @@ impl RotatableCloud {
         r: &[[f64; 3]; 3],
         min: &Point,
         s: f64,
-        grid: &mut [T],
-        sx: usize,
-        sy: usize,
+        grid: GridView<'_, T>,
     ) {
+        let GridView {
+            cells: grid,
+            sx,
+            sy,
+        } = grid;
         let inv = 1.0 / s;
         let n = self.points.len();
         // Flat indices go through u32 in the vector loop (one conversion instruction).

@@ -19,7 +19,7 @@ use crate::transform::{rotation_angle_deg, Rigid};
 use crate::voxel::{self, Occupancy};
 use memory_model::MemoryModel;
 use nalgebra::{Matrix3, Vector3};
-use passes::{exact_best, run_pass, LevelScores, PassInput, StageTimes};
+use passes::{exact_best, rescore_f64, run_pass, LevelScores, PassInput, StageTimes, Tally};
 use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -442,13 +442,26 @@ pub fn coarse_register(
     let mut scores = LevelScores::new(n_rot);
     let mut correlators: Option<(Geometry, CpuCorrelator<f64>, Option<CpuCorrelator<f32>>)> = None;
     let mut estimate = 0;
-    let mut rescored = 0usize;
-    let mut rescore_time = Duration::ZERO;
+    let mut tally = Tally {
+        times,
+        ..Tally::default()
+    };
     let progress = match cfg.mode {
         SearchMode::Exhaustive => cfg.progress.as_deref(),
         SearchMode::CoarseToFine(_) => None,
     };
     let t_search = Instant::now();
+    let no_boxes: Vec<Option<RotatedBox>> = Vec::new();
+    let base_input = PassInput {
+        pool: &pool,
+        threads,
+        cloud: &rc,
+        rows: &rot_rows,
+        boxes: &no_boxes,
+        voxel: s,
+        cancel: cfg.cancel.as_ref(),
+        progress: None,
+    };
     let mut keep = coarse_level.as_ref().map_or(n_rot, |l| l.kept);
     let winner = loop {
         let wanted = match &coarse_level {
@@ -485,26 +498,21 @@ pub fn coarse_register(
         }
         let (_, corr64, corr32) = correlators.as_ref().expect("planned above");
         let input = PassInput {
-            pool: &pool,
-            threads,
-            cloud: &rc,
-            rows: &rot_rows,
             boxes: &boxes,
-            voxel: s,
-            cancel: cfg.cancel.as_ref(),
             progress,
+            ..base_input
         };
         match corr32 {
             Some(c32) => {
                 let (found, st) = run_pass(&input, c32, &new, |c, ws| c.approx_best(ws))?;
-                times.add(&st);
+                tally.times.add(&st);
                 for (&k, a) in new.iter().zip(found) {
                     scores.approx[k] = Some(a);
                 }
             }
             None => {
                 let (found, st) = run_pass(&input, corr64, &new, |c, ws| c.best_offset(ws))?;
-                times.add(&st);
+                tally.times.add(&st);
                 for (&k, b) in new.iter().zip(found) {
                     scores.exact[k] = Some(b);
                 }
@@ -517,19 +525,12 @@ pub fn coarse_register(
             progress: None,
             ..input
         };
-        let mut rescore = |pending: &[usize], sc: &mut LevelScores| -> Result<()> {
-            let t = Instant::now();
-            let (found, st) = run_pass(&quiet, corr64, pending, |c, ws| c.best_offset(ws))?;
-            times.add(&st);
-            for (&k, b) in pending.iter().zip(found) {
-                sc.exact[k] = Some(b);
-            }
-            rescored += pending.len();
-            rescore_time += t.elapsed();
-            Ok(())
-        };
-        let w = exact_best(&mut scores, |_| true, &mut rescore)?
-            .expect("at least one rotation is scored");
+        let w = exact_best(
+            &mut scores,
+            |_| true,
+            |p, sc| rescore_f64(&quiet, corr64, p, sc, &mut tally),
+        )?
+        .expect("at least one rotation is scored");
         if let Some(level) = &mut coarse_level {
             level.rounds += 1;
             level.kept = keep;
@@ -545,25 +546,12 @@ pub fn coarse_register(
     };
     let (geo, corr64, _) = correlators.expect("at least one round ran");
     let quiet = PassInput {
-        pool: &pool,
-        threads,
-        cloud: &rc,
-        rows: &rot_rows,
-        boxes: &boxes,
-        voxel: s,
-        cancel: cfg.cancel.as_ref(),
         progress: None,
+        boxes: &boxes,
+        ..base_input
     };
-    let mut rescore = |pending: &[usize], sc: &mut LevelScores| -> Result<()> {
-        let t = Instant::now();
-        let (found, st) = run_pass(&quiet, &corr64, pending, |c, ws| c.best_offset(ws))?;
-        times.add(&st);
-        for (&k, b) in pending.iter().zip(found) {
-            sc.exact[k] = Some(b);
-        }
-        rescored += pending.len();
-        rescore_time += t.elapsed();
-        Ok(())
+    let mut rescore = |p: &[usize], sc: &mut LevelScores| -> Result<()> {
+        rescore_f64(&quiet, &corr64, p, sc, &mut tally)
     };
     let radius = cfg.distinct_radius_deg.unwrap_or(2.0 * set.step_deg);
     let far = |chosen: &[usize], k: usize| {
@@ -624,24 +612,24 @@ pub fn coarse_register(
         geometry: geo,
         threads,
         memory_estimate_bytes: estimate,
-        max_rounding_error: times.max_rounding_error,
+        max_rounding_error: tally.times.max_rounding_error,
         mode: cfg.mode,
         precision: cfg.precision,
         scored: scored.iter().filter(|&&d| d).count(),
-        rescored,
+        rescored: tally.rescored,
         coarse_level,
-        fft_gflop: times.flops * 1e-9,
+        fft_gflop: tally.times.flops * 1e-9,
         timings: Timings {
             target_ms,
             extents_ms,
             search_ms,
             total_ms: ms(t_start.elapsed()),
-            cpu_voxelize_ms: ms(times.voxelize),
-            cpu_forward_ms: ms(times.forward),
-            cpu_product_ms: ms(times.product),
-            cpu_inverse_ms: ms(times.inverse),
+            cpu_voxelize_ms: ms(tally.times.voxelize),
+            cpu_forward_ms: ms(tally.times.forward),
+            cpu_product_ms: ms(tally.times.product),
+            cpu_inverse_ms: ms(tally.times.inverse),
             coarse_level_ms,
-            rescore_ms: ms(rescore_time),
+            rescore_ms: ms(tally.rescore_time),
         },
     })
 }

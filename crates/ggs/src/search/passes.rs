@@ -93,10 +93,9 @@ pub(super) fn run_pass<T: Real, R: Send + Copy>(
                     let tv = Instant::now();
                     let b = input.boxes[k].expect("extents computed for every scored rotation");
                     ws.begin(b.dims);
-                    let (grid, sy, sx) = ws.grid_mut();
                     input
                         .cloud
-                        .voxelize(&input.rows[k], &b.min, s, grid, sx, sy);
+                        .voxelize(&input.rows[k], &b.min, s, ws.grid_mut());
                     t_vox += tv.elapsed();
                     flops += corr.geometry().flops(b.dims);
                     local.push((slot, score(corr, &mut ws)));
@@ -135,6 +134,33 @@ pub(super) fn run_pass<T: Real, R: Send + Copy>(
         .map(|r| r.expect("every rotation scored"))
         .collect();
     Ok((results, stats.into_inner().expect("workers finished")))
+}
+
+/// Work counters of a search: stage times, and the f64 re-scoring.
+#[derive(Debug, Default)]
+pub(super) struct Tally {
+    pub times: StageTimes,
+    pub rescored: usize,
+    pub rescore_time: Duration,
+}
+
+/// Re-score the rotations `pending` in f64 (exact integers) into `scores.exact`.
+pub(super) fn rescore_f64(
+    input: &PassInput<'_>,
+    corr: &CpuCorrelator<f64>,
+    pending: &[usize],
+    scores: &mut LevelScores,
+    tally: &mut Tally,
+) -> Result<()> {
+    let t = Instant::now();
+    let (found, st) = run_pass(input, corr, pending, |c, ws| c.best_offset(ws))?;
+    tally.times.add(&st);
+    for (&k, b) in pending.iter().zip(found) {
+        scores.exact[k] = Some(b);
+    }
+    tally.rescored += pending.len();
+    tally.rescore_time += t.elapsed();
+    Ok(())
 }
 
 /// Per-rotation scores of one resolution level: approximate, exact, or both.
