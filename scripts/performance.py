@@ -56,6 +56,7 @@ def main():
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--ggs", default=str(ROOT / "target/release/ggs"))
     ap.add_argument("--out")
+    ap.add_argument("--only", help="only pairs whose name contains this")
     a = ap.parse_args()
     name, hsrc, htgt = human_pair(a.ggs, a.threads)
     pairs = [
@@ -81,6 +82,8 @@ def main():
              + " | CPU vox/fwd/x/inv ms | rotations scored | f64 re-scored | GFLOP | GFLOP/s (FFT CPU) | peak MB | same T |",
              "|---" * (len(stages) + 9) + "|"]
     for pname, src, tgt, voxel, rot in pairs:
+        if a.only and a.only not in pname:
+            continue
         transforms = set()
         for mode in ["exhaustive", "coarse-to-fine"]:
             rows, rss = [], []
