@@ -455,7 +455,7 @@ impl<T: Real> CpuCorrelator<T> {
 
     /// Bound on `max_a |computed(a) − m(a)|` for a source grid with `occupied` occupied cells:
     /// `(2·ε_F + 4u)·√occupied·max_j|K_j|` with `ε_F = Σ_d ε(L_d)` the 3-D transform's
-    /// relative error ([`fft_error`]), `u` the unit roundoff and `K` the unnormalized kernel
+    /// relative error (`fft_error`), `u` the unit roundoff and `K` the unnormalized kernel
     /// spectrum. Derivation: `‖x‖₂ = √occupied`; the forward transform errs by `ε_F·‖X‖₂`,
     /// the product (kernel rounded to `T`, one complex multiply) by `4u·‖X‖₂·max|K|`, the
     /// inverse by `ε_F` of its result, and the 2-norm of the error bounds its largest entry.

@@ -5,6 +5,16 @@
 //! chosen by a sequential scan, so the result is bit-identical whatever the thread count.
 //! Ties go to the lowest rotation index, then the lowest offset in x-major C order; scores
 //! are exact integers, so float noise never decides a tie.
+//!
+//! Precision ([`Precision::Mixed`], the default): rotations are scored in f32 with a proven
+//! error bound and every rotation whose bound could reach the winner (or a top-k hypothesis,
+//! or the runner-up) is re-scored in f64, so the picks are the all-f64 ones
+//! (`passes::exact_best`).
+//!
+//! Modes: [`SearchMode::Exhaustive`] scores every rotation at the voxel size;
+//! [`SearchMode::CoarseToFine`] ranks every rotation at a coarser voxel first and scores at the
+//! voxel size only the best and their neighbours, in rounds that look further while the
+//! winner ranks in the lower half of what was kept (docs/performance.md).
 
 mod memory_model;
 mod passes;
