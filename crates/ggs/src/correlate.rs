@@ -333,6 +333,22 @@ impl<T: Real> CpuCorrelator<T> {
         me
     }
 
+    /// The same correlator in another sample type: new plans, the f64 kernel spectrum of
+    /// `exact` rounded to `T` (no second kernel transform).
+    pub fn from_f64(exact: &CpuCorrelator<f64>) -> Self {
+        let mut me = Self::plan(exact.geo);
+        let cast = |v: f64| T::from_f64(v).expect("finite spectrum");
+        me.kernel = exact
+            .kernel
+            .iter()
+            .map(|c| Complex::new(cast(c.re), cast(c.im)))
+            .collect();
+        me.kernel_peak = exact.kernel_peak;
+        me.kernel_occupied = exact.kernel_occupied;
+        me.kernel_cells = exact.kernel_cells;
+        me
+    }
+
     /// FFT plans for `geo`, without a kernel.
     fn plan(geo: Geometry) -> Self {
         let [lx, ly, lz] = geo.fft_len;
@@ -846,6 +862,23 @@ mod tests {
             let best = *exact.iter().max().unwrap() as f64;
             assert!(approx.lower() <= best && best <= approx.upper());
         }
+    }
+
+    #[test]
+    fn from_f64_equals_a_fresh_correlator() {
+        let k = occupancy([5, 4, 6], &[true, false, false, true, false]);
+        let geo = Geometry::new(k.dims, [7, 6, 6]);
+        let exact = CpuCorrelator::<f64>::new(geo, &k);
+        let (a, b) = (
+            CpuCorrelator::<f32>::new(geo, &k),
+            CpuCorrelator::<f32>::from_f64(&exact),
+        );
+        assert_eq!(a.kernel, b.kernel);
+        assert_eq!(a.kernel_peak, b.kernel_peak);
+        assert_eq!(
+            (a.kernel_cells, a.kernel_occupied),
+            (b.kernel_cells, b.kernel_occupied)
+        );
     }
 
     #[test]

@@ -500,7 +500,7 @@ pub fn coarse_register(
             let t = Instant::now();
             let c64 = CpuCorrelator::<f64>::new(geo, &kernel);
             let c32 = match cfg.precision {
-                Precision::Mixed => Some(CpuCorrelator::<f32>::new(geo, &kernel)),
+                Precision::Mixed => Some(CpuCorrelator::<f32>::from_f64(&c64)),
                 Precision::F64 => None,
             };
             correlators = Some((geo, c64, c32));
