@@ -15,6 +15,7 @@ macro_rules! outln {
 }
 
 mod bench;
+mod files;
 mod partial;
 mod refine_args;
 mod register;
@@ -36,6 +37,10 @@ enum Command {
     Register(Box<register::RegisterArgs>),
     /// Refine an initial transform (p_target = T · p_source) by ICP.
     Refine(Box<register::RefineArgs>),
+    /// Read point-cloud files and print their format, points, bounds and read speed.
+    Info(files::InfoArgs),
+    /// Convert a point cloud between formats (any readable to any writable, atomically).
+    Convert(Box<files::ConvertArgs>),
     /// Write a rotation set to a .npy file of shape [N, 3, 3] (or print its size).
     Rotations(register::RotationsArgs),
     /// Run a benchmark protocol (3dmatch, kitti, eth, fpv1) or a manifest of pairs.
@@ -80,6 +85,8 @@ fn main() -> ExitCode {
         Command::Register(a) => register::run(*a),
         Command::Refine(a) => register::run_refine(*a),
         Command::Rotations(a) => register::run_rotations(a),
+        Command::Info(a) => files::run_info(a),
+        Command::Convert(a) => files::run_convert(*a),
         Command::Bench(a) => bench::run(*a),
         Command::Partial(a) => partial::run(*a),
     };

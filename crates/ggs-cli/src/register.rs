@@ -1,9 +1,10 @@
 //! `ggs register` and `ggs rotations`.
 
+use crate::files::{self, InputArgs};
 use crate::refine_args::{parse_method, print_report, read_matrix, RefineOptions};
 use anyhow::{bail, Context, Result};
 use clap::Args;
-use ggs::io::{self, ply, Format};
+use ggs::io::{self, ply, ReadOptions};
 use ggs::refine::{self, RefineResult};
 use ggs::rotations::{RotationSet, DUPLICATE_TOL_DEG};
 use ggs::search::{self, SearchConfig, SearchResult};
@@ -144,9 +145,8 @@ fn write_outputs(io_args: &IoArgs, source: &Cloud, t: &Rigid) -> Result<()> {
 /// Input format and outputs, shared by `register` and `refine`.
 #[derive(Args)]
 pub struct IoArgs {
-    /// Force the input format (ply, pcd, xyz, txt, csv, pts, npy, bin, las, laz, obj, stl) of both clouds.
-    #[arg(long)]
-    pub format: Option<String>,
+    #[command(flatten)]
+    pub input: InputArgs,
     /// Print everything as JSON on stdout.
     #[arg(long)]
     pub json: bool,
@@ -154,7 +154,7 @@ pub struct IoArgs {
     #[arg(short = 'o', long = "output", value_name = "T.txt")]
     pub output: Option<PathBuf>,
     /// Write the source, moved by the final T, to this file (format by extension: .ply,
-    /// .pcd, .xyz/.txt/.pts/.csv, .npy, .bin, .las, .laz).
+    /// .pcd, .xyz/.txt/.pts/.csv, .npy, .bin, .las, .laz, .e57).
     #[arg(long, value_name = "OUT")]
     pub aligned: Option<PathBuf>,
 }
@@ -168,27 +168,8 @@ pub struct RotationsArgs {
     pub out: Option<PathBuf>,
 }
 
-fn parse_format(f: &Option<String>) -> Result<Option<Format>> {
-    match f {
-        Some(f) => Ok(Some(Format::from_name(f).with_context(|| {
-            format!(
-                "--format: unknown format '{f}' (known: ply, pcd, xyz, txt, csv, pts, npy, bin, las, laz, obj, stl)"
-            )
-        })?)),
-        None => Ok(None),
-    }
-}
-
-fn load(path: &Path, format: Option<Format>, quiet: bool) -> Result<Cloud> {
-    let loaded = io::read_cloud(path, format)?;
-    if loaded.dropped_non_finite > 0 && !quiet {
-        tracing::warn!(
-            "{}: dropped {} point(s) with NaN or infinite coordinates",
-            path.display(),
-            loaded.dropped_non_finite
-        );
-    }
-    Ok(loaded.cloud)
+fn load(path: &Path, opts: &ReadOptions, quiet: bool) -> Result<Cloud> {
+    Ok(files::load(path, opts, quiet)?.cloud)
 }
 
 fn rotation_set(args: &RegisterArgs) -> Result<RotationSet> {
@@ -219,14 +200,14 @@ fn progress_bar(len: usize, quiet: bool) -> ProgressBar {
 
 pub fn run(args: RegisterArgs) -> Result<()> {
     let t0 = Instant::now();
-    let format = parse_format(&args.io.format)?;
+    let format = args.io.input.options()?;
     let method = parse_method(&args.refine)?;
     let refine_cfg = match method {
         Some(m) => Some(args.refine_options.config(m, args.threads)?),
         None => None,
     };
-    let source = load(&args.source, format, args.quiet)?;
-    let target = load(&args.target, format, args.quiet)?;
+    let source = load(&args.source, &format, args.quiet)?;
+    let target = load(&args.target, &format, args.quiet)?;
     let read_ms = t0.elapsed().as_secs_f64() * 1e3;
     let set = rotation_set(&args)?;
     let (voxel, voxel_auto) = match args.voxel {
@@ -432,13 +413,13 @@ fn print_timings(
 }
 
 pub fn run_refine(args: RefineArgs) -> Result<()> {
-    let format = parse_format(&args.io.format)?;
+    let format = args.io.input.options()?;
     let method =
         parse_method(&args.method)?.context("ggs refine needs a method: gicp, p2plane or p2p")?;
     let cfg = args.refine_options.config(method, args.threads)?;
     let init = read_matrix(&args.init)?;
-    let source = load(&args.source, format, args.quiet)?;
-    let target = load(&args.target, format, args.quiet)?;
+    let source = load(&args.source, &format, args.quiet)?;
+    let target = load(&args.target, &format, args.quiet)?;
     let r = refine::refine(&source, &target, &init, &cfg)?;
     write_outputs(&args.io, &source, &r.transform)?;
     if args.io.json {

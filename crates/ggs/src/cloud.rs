@@ -102,10 +102,15 @@ impl Cloud {
 
     /// Drop points with a NaN or infinite coordinate; returns how many were dropped.
     pub fn drop_non_finite(&mut self) -> usize {
-        let before = self.points.len();
-        self.points.retain(|p| p.iter().all(|v| v.is_finite()));
-        before - self.points.len()
+        drop_non_finite(&mut self.points)
     }
+}
+
+/// Remove the points with a NaN or infinite coordinate, in place; returns how many.
+pub fn drop_non_finite(points: &mut Vec<Point>) -> usize {
+    let before = points.len();
+    points.retain(|p| p.iter().all(|v| v.is_finite()));
+    before - points.len()
 }
 
 #[cfg(test)]

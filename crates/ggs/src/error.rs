@@ -15,17 +15,18 @@ pub enum GgsError {
         #[source]
         source: std::io::Error,
     },
-    /// The file was read but its content is malformed.
+    /// The file was read but its content is malformed: `message` says what was found and
+    /// what was expected there.
     #[error("{path}: {location}{message}")]
     Parse {
         path: PathBuf,
-        /// "line 12: ", "byte 4096: " or empty.
-        location: String,
+        /// Where in the file: a line, a byte offset, or the file as a whole.
+        location: Location,
         message: String,
     },
     /// The file extension (or `--format`) names no format that ggs reads or writes.
     #[error(
-        "{path}: unknown point-cloud format {what} (known: ply, pcd, xyz, txt, csv, pts, npy)"
+        "{path}: unknown point-cloud format {what} (known: ply, pcd, xyz, txt, csv, pts, npy, npz, bin, las, laz, e57, obj, stl)"
     )]
     UnknownFormat { path: PathBuf, what: String },
     /// A cloud holds no usable point.
@@ -47,7 +48,7 @@ impl GgsError {
     pub fn at_line(path: &std::path::Path, line: usize, message: impl Into<String>) -> Self {
         GgsError::Parse {
             path: path.to_path_buf(),
-            location: format!("line {line}: "),
+            location: Location::Line(line),
             message: message.into(),
         }
     }
@@ -56,7 +57,7 @@ impl GgsError {
     pub fn at_byte(path: &std::path::Path, offset: u64, message: impl Into<String>) -> Self {
         GgsError::Parse {
             path: path.to_path_buf(),
-            location: format!("byte {offset}: "),
+            location: Location::Byte(offset),
             message: message.into(),
         }
     }
@@ -65,7 +66,7 @@ impl GgsError {
     pub fn in_file(path: &std::path::Path, message: impl Into<String>) -> Self {
         GgsError::Parse {
             path: path.to_path_buf(),
-            location: String::new(),
+            location: Location::File,
             message: message.into(),
         }
     }
@@ -83,6 +84,38 @@ impl GgsError {
         GgsError::InvalidParameter {
             name,
             message: message.into(),
+        }
+    }
+}
+
+/// Where in a file a parse error is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Location {
+    /// The file as a whole (a count that does not match, a missing header field).
+    File,
+    /// A 1-based line of a text file or header.
+    Line(usize),
+    /// A 0-based byte offset from the start of the file.
+    Byte(u64),
+}
+
+impl std::fmt::Display for Location {
+    /// `"line 12: "`, `"byte 4096: "`, or nothing for the whole file.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Location::File => Ok(()),
+            Location::Line(l) => write!(f, "line {l}: "),
+            Location::Byte(b) => write!(f, "byte {b}: "),
+        }
+    }
+}
+
+impl GgsError {
+    /// The location of a parse error, if this is one.
+    pub fn location(&self) -> Option<Location> {
+        match self {
+            GgsError::Parse { location, .. } => Some(*location),
+            _ => None,
         }
     }
 }

@@ -43,5 +43,5 @@ pub mod voxel;
 pub(crate) mod test_rng;
 
 pub use cloud::{Cloud, Point};
-pub use error::{GgsError, Result};
+pub use error::{GgsError, Location, Result};
 pub use transform::Rigid;

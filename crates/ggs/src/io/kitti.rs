@@ -1,31 +1,48 @@
 //! KITTI velodyne scans (`.bin`): little-endian float32 records `x y z reflectance`, 16
 //! bytes per point, no header.
 
+use super::stream;
 use crate::cloud::Point;
 use crate::error::{GgsError, Result};
+use std::io::Read;
 use std::path::Path;
 
 /// Bytes per point.
 pub const RECORD: usize = 16;
 
-/// Parse a KITTI `.bin` scan (reflectance dropped).
+/// Parse a KITTI `.bin` scan held in memory (reflectance dropped).
 pub fn parse_kitti_bin(path: &Path, bytes: &[u8]) -> Result<Vec<Point>> {
-    if bytes.len() % RECORD != 0 {
+    read_kitti_bin(path, &mut std::io::Cursor::new(bytes), bytes.len() as u64)
+}
+
+/// Read a KITTI `.bin` scan of `len` bytes from a stream, [`stream::CHUNK_BYTES`] at a
+/// time (reflectance dropped).
+pub fn read_kitti_bin<R: Read>(path: &Path, r: &mut R, len: u64) -> Result<Vec<Point>> {
+    let rec = RECORD as u64;
+    if len % rec != 0 {
         return Err(GgsError::at_byte(
             path,
-            (bytes.len() - bytes.len() % RECORD) as u64,
+            len - len % rec,
             format!(
-                "KITTI .bin holds 16-byte records (float32 x y z reflectance); {} bytes leave {} over",
-                bytes.len(),
-                bytes.len() % RECORD
+                "expected 16-byte records (float32 x y z reflectance); {len} bytes leave {} over",
+                len % rec
             ),
         ));
     }
     let f = |b: &[u8]| f32::from_le_bytes([b[0], b[1], b[2], b[3]]) as f64;
-    Ok(bytes
-        .chunks_exact(RECORD)
-        .map(|r| [f(&r[0..4]), f(&r[4..8]), f(&r[8..12])])
-        .collect())
+    let mut out = Vec::with_capacity((len / rec) as usize);
+    stream::read_records(
+        path,
+        r,
+        0,
+        RECORD,
+        len / rec,
+        "the file size",
+        stream::CHUNK_BYTES,
+        |r| [f(&r[0..4]), f(&r[4..8]), f(&r[8..12])],
+        &mut out,
+    )?;
+    Ok(out)
 }
 
 /// Write a KITTI `.bin` scan (reflectance 0) atomically; for tests and fixtures.

@@ -3,29 +3,54 @@
 
 use crate::cloud::Point;
 use crate::error::{GgsError, Result};
+use std::io::{Read, Seek};
 use std::path::Path;
 
-/// Read every point of a LAS or LAZ file (the format is in the header, not the extension).
-/// Takes the file's bytes by value: the reader owns its source, so no copy is made.
-pub fn parse_las(path: &Path, bytes: Vec<u8>) -> Result<Vec<Point>> {
-    let mut reader = las::Reader::new(std::io::Cursor::new(bytes))
-        .map_err(|e| GgsError::in_file(path, format!("LAS header: {e}")))?;
-    let n = reader.header().number_of_points();
-    let mut out = Vec::with_capacity(n.min(1 << 28) as usize);
-    for (k, p) in reader.points().enumerate() {
-        let p = p.map_err(|e| GgsError::in_file(path, format!("LAS point {k} of {n}: {e}")))?;
-        out.push([p.x, p.y, p.z]);
+/// Points decoded per call into the `las` crate (bounds the memory beside the output).
+const BATCH: u64 = 1 << 16;
+
+/// Read every point of a LAS or LAZ file (the format is in the header, not the extension)
+/// from a stream positioned at its first byte. Points are decoded [`BATCH`] at a time, so
+/// the memory beside the output is one batch of `las::Point`s.
+pub fn read_las<R: Read + Seek + Send + Sync + 'static>(path: &Path, r: R) -> Result<Vec<Point>> {
+    let mut reader =
+        las::Reader::new(r).map_err(|e| GgsError::in_file(path, format!("LAS header: {e}")))?;
+    let header = reader.header();
+    let n = header.number_of_points();
+    let at = header.point_format().len() as u64;
+    let mut out = Vec::with_capacity(n.min(1 << 24) as usize);
+    let mut batch = Vec::with_capacity(BATCH.min(n) as usize);
+    while (out.len() as u64) < n {
+        batch.clear();
+        let done = out.len() as u64;
+        let got = reader
+            .read_points_into(BATCH.min(n - done), &mut batch)
+            .map_err(|e| {
+                GgsError::in_file(
+                    path,
+                    format!("LAS points {done}.. of {n} (records of {at} bytes): {e}"),
+                )
+            })?;
+        if got == 0 {
+            break;
+        }
+        out.extend(batch.iter().map(|p| [p.x, p.y, p.z]));
     }
     if (out.len() as u64) < n {
         return Err(GgsError::in_file(
             path,
             format!(
-                "the header announces {n} points, the file holds {}",
+                "truncated: the header announces {n} points, the file holds {}",
                 out.len()
             ),
         ));
     }
     Ok(out)
+}
+
+/// Read a LAS or LAZ file held in memory.
+pub fn parse_las(path: &Path, bytes: Vec<u8>) -> Result<Vec<Point>> {
+    read_las(path, std::io::Cursor::new(bytes))
 }
 
 /// Write points as LAS 1.4 (point format 0), LAZ-compressed when `path` ends in `.laz`,

@@ -4,17 +4,20 @@
 //! [`Format`] skips the extension. Every reader returns a typed [`GgsError`] that names the
 //! file and the line or byte offset of the problem.
 
+pub mod e57;
 pub mod kitti;
 pub mod las;
 pub mod mesh;
 pub mod npy;
+pub mod npz;
 pub mod pcd;
 pub mod ply;
+pub mod stream;
 pub mod xyz;
 
 use crate::cloud::Cloud;
 use crate::error::{GgsError, Result};
-use std::io::Write;
+use std::io::{BufRead, BufReader, Read, Write};
 use std::path::Path;
 
 /// Point-cloud file formats.
@@ -25,15 +28,23 @@ pub enum Format {
     /// Delimited text: `.xyz`, `.txt`, `.csv`, `.pts`.
     Text,
     Npy,
+    /// NumPy `.npz` archive (one of its arrays).
+    Npz,
     /// KITTI velodyne `.bin` (float32 x y z reflectance).
     KittiBin,
     /// ASPRS LAS or LAZ (scale and offset applied).
     Las,
-    /// Wavefront OBJ mesh (its vertices).
+    /// ASTM E57 (all scans with their poses, or one scan).
+    E57,
+    /// Wavefront OBJ mesh (its vertices, or points sampled on its faces).
     Obj,
-    /// STL mesh, binary or ASCII (its distinct vertices).
+    /// STL mesh, binary or ASCII (its distinct vertices, or points sampled on its faces).
     Stl,
 }
+
+/// Names `--format` accepts.
+pub const FORMAT_NAMES: &str =
+    "ply, pcd, xyz, txt, csv, pts, npy, npz, bin, las, laz, e57, obj, stl";
 
 impl Format {
     /// Parse a `--format` value.
@@ -43,8 +54,10 @@ impl Format {
             "pcd" => Format::Pcd,
             "xyz" | "txt" | "csv" | "pts" | "text" => Format::Text,
             "npy" => Format::Npy,
+            "npz" => Format::Npz,
             "bin" | "kitti" => Format::KittiBin,
             "las" | "laz" => Format::Las,
+            "e57" => Format::E57,
             "obj" => Format::Obj,
             "stl" => Format::Stl,
             _ => return None,
@@ -57,77 +70,112 @@ impl Format {
         Format::from_name(ext)
     }
 
-    /// Guess from the first bytes of the file.
+    /// Guess from the first bytes of the file (a few hundred are enough). Text formats
+    /// without a signature (XYZ, OBJ) and KITTI `.bin` have no magic: their extension
+    /// decides.
     pub fn from_magic(bytes: &[u8]) -> Option<Format> {
-        if bytes.starts_with(b"ply\n") || bytes.starts_with(b"ply\r\n") {
+        let starts = |m: &[u8]| bytes.starts_with(m);
+        if starts(b"ply\n") || starts(b"ply\r\n") {
             Some(Format::Ply)
-        } else if bytes.starts_with(b"\x93NUMPY") {
+        } else if starts(b"\x93NUMPY") {
             Some(Format::Npy)
-        } else if bytes.starts_with(b"LASF") {
+        } else if starts(b"PK\x03\x04") || starts(b"PK\x05\x06") {
+            Some(Format::Npz)
+        } else if starts(b"LASF") {
             Some(Format::Las)
-        } else if bytes.starts_with(b"# .PCD") || bytes.starts_with(b"VERSION") {
+        } else if starts(b"ASTM-E57") {
+            Some(Format::E57)
+        } else if starts(b"# .PCD") || starts(b"VERSION") {
             Some(Format::Pcd)
+        } else if starts(b"solid") && ascii_stl_start(bytes) {
+            Some(Format::Stl)
         } else {
             None
         }
     }
 }
 
+/// An ASCII STL starts `solid NAME` and then `facet`; binary STLs may start with `solid` too,
+/// in their 80-byte free header, but are not text after it.
+fn ascii_stl_start(bytes: &[u8]) -> bool {
+    let head = &bytes[..bytes.len().min(512)];
+    head.windows(5).any(|w| w == b"facet") && head.iter().all(|&b| b.is_ascii())
+}
+
+/// How to read a file: its format (or detect it), and the choices some formats need.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct ReadOptions {
+    /// Force the format; `None`: magic bytes, then the extension.
+    pub format: Option<Format>,
+    /// E57: which scans, and whether their poses are applied.
+    pub e57: e57::E57Options,
+    /// NPZ: the array to read (`None`: the array shaped like a cloud).
+    pub npz_array: Option<String>,
+    /// OBJ, STL and PLY meshes: sample this many points uniformly on the faces (seeded,
+    /// reproducible) instead of taking the vertices. Point clouds are read as they are.
+    pub mesh_samples: Option<usize>,
+}
+
+/// Seed of mesh sampling on read (so a mesh read twice gives the same points).
+pub const MESH_SAMPLE_SEED: u64 = 0x6767_73;
+
 /// A cloud read from a file, with what was dropped on the way.
 #[derive(Debug, Clone)]
 pub struct LoadedCloud {
     pub cloud: Cloud,
-    /// Points dropped because a coordinate was NaN or infinite.
+    /// Points dropped because a coordinate was NaN or infinite (or, in E57, marked invalid).
     pub dropped_non_finite: usize,
+    /// The format the file was read as.
+    pub format: Format,
+    /// Size of the file in bytes.
+    pub file_bytes: u64,
 }
 
-/// Read a point cloud. `format` forces the format; otherwise the extension decides, and a
-/// file whose magic bytes say otherwise (a PLY named `.txt`) is read by its magic.
-/// NaN or infinite points are dropped (and counted); an empty result is an error.
+/// Read a point cloud. `format` forces the format; otherwise the magic bytes decide, then
+/// the extension (a PLY named `.txt` is read as PLY). See [`read_cloud_with`].
 pub fn read_cloud(path: &Path, format: Option<Format>) -> Result<LoadedCloud> {
-    let bytes = std::fs::read(path).map_err(|e| GgsError::io(path, e))?;
-    let fmt = match format {
-        Some(f) => f,
-        None => match (Format::from_magic(&bytes), Format::from_extension(path)) {
-            (Some(m), _) => m,
-            (None, Some(e)) => e,
-            (None, None) => {
-                return Err(GgsError::UnknownFormat {
-                    path: path.to_path_buf(),
-                    what: match path.extension() {
-                        Some(e) => format!("'.{}'", e.to_string_lossy()),
-                        None => "(no extension, no known magic bytes)".to_string(),
-                    },
-                })
-            }
+    read_cloud_with(
+        path,
+        &ReadOptions {
+            format,
+            ..Default::default()
         },
+    )
+}
+
+/// Bytes of the read buffer: large enough that the kernel reads ahead at disk speed.
+const READ_BUFFER: usize = 1 << 20;
+
+/// Read a point cloud with options. Binary PLY, binary PCD, KITTI, LAS/LAZ and E57 are
+/// streamed (the memory beside the points is a few MB, whatever the file size); the other
+/// formats are read whole, then parsed. NaN or infinite points are dropped (and counted); an
+/// empty result is an error.
+pub fn read_cloud_with(path: &Path, opts: &ReadOptions) -> Result<LoadedCloud> {
+    let io = |e| GgsError::io(path, e);
+    let file = std::fs::File::open(path).map_err(io)?;
+    let file_bytes = file.metadata().map_err(io)?.len();
+    let mut r = BufReader::with_capacity(READ_BUFFER, file);
+    let fmt = match opts.format {
+        Some(f) => f,
+        None => detect(path, &mut r)?,
     };
-    let points = match fmt {
-        Format::Ply => ply::parse_ply(path, &bytes)?,
-        Format::Pcd => pcd::parse_pcd(path, &bytes)?,
-        Format::KittiBin => kitti::parse_kitti_bin(path, &bytes)?,
-        Format::Las => las::parse_las(path, bytes)?,
-        Format::Obj => mesh::parse_obj(path, &bytes)?.vertices,
-        Format::Stl => mesh::parse_stl(path, &bytes)?.vertices,
-        Format::Text => xyz::parse_xyz(path, &bytes)?,
-        Format::Npy => {
-            let a = npy::parse_npy(path, &bytes)?;
-            if a.shape.len() != 2 || a.shape[1] < 3 {
-                return Err(GgsError::in_file(
-                    path,
-                    format!(
-                        "expected an array of shape [N, 3] or [N, k≥3], found {:?}",
-                        a.shape
-                    ),
-                ));
-            }
-            let k = a.shape[1];
-            a.data.chunks_exact(k).map(|r| [r[0], r[1], r[2]]).collect()
+    let mut points = match fmt {
+        Format::Ply if opts.mesh_samples.is_some() => {
+            sampled(path, opts, ply::parse_ply_mesh(path, &read_all(path, r)?)?)?
         }
+        Format::Ply => ply::read_ply(path, &mut r, Some(file_bytes))?,
+        Format::Pcd => pcd::read_pcd(path, &mut r, Some(file_bytes))?,
+        Format::KittiBin => kitti::read_kitti_bin(path, &mut r, file_bytes)?,
+        Format::Las => las::read_las(path, r)?,
+        Format::E57 => e57::read_e57(path, r, opts.e57)?,
+        Format::Npz => npz::read_npz_points(path, r, opts.npz_array.as_deref())?,
+        Format::Obj => sampled(path, opts, mesh::parse_obj(path, &read_all(path, r)?)?)?,
+        Format::Stl => sampled(path, opts, mesh::parse_stl(path, &read_all(path, r)?)?)?,
+        Format::Text => xyz::parse_xyz(path, &read_all(path, r)?)?,
+        Format::Npy => npy::points_of(path, &npy::parse_npy(path, &read_all(path, r)?)?)?,
     };
-    let mut cloud = Cloud::new(points);
-    let dropped = cloud.drop_non_finite();
-    if cloud.is_empty() {
+    let dropped = crate::cloud::drop_non_finite(&mut points);
+    if points.is_empty() {
         return Err(GgsError::EmptyCloud {
             what: path.display().to_string(),
             detail: if dropped > 0 {
@@ -138,16 +186,77 @@ pub fn read_cloud(path: &Path, format: Option<Format>) -> Result<LoadedCloud> {
         });
     }
     Ok(LoadedCloud {
-        cloud,
+        cloud: Cloud::new(points),
         dropped_non_finite: dropped,
+        format: fmt,
+        file_bytes,
     })
+}
+
+/// The format of a file: its magic bytes, else its extension.
+fn detect<R: BufRead>(path: &Path, r: &mut R) -> Result<Format> {
+    let head = r.fill_buf().map_err(|e| GgsError::io(path, e))?;
+    if let Some(m) = Format::from_magic(head) {
+        return Ok(m);
+    }
+    Format::from_extension(path).ok_or_else(|| GgsError::UnknownFormat {
+        path: path.to_path_buf(),
+        what: match path.extension() {
+            Some(e) => format!("'.{}'", e.to_string_lossy()),
+            None => "(no extension, no known magic bytes)".to_string(),
+        },
+    })
+}
+
+fn read_all<R: Read>(path: &Path, mut r: R) -> Result<Vec<u8>> {
+    let mut bytes = Vec::new();
+    r.read_to_end(&mut bytes)
+        .map_err(|e| GgsError::io(path, e))?;
+    Ok(bytes)
+}
+
+/// A mesh's vertices, or points sampled on its faces if `opts.mesh_samples` asks.
+fn sampled(path: &Path, opts: &ReadOptions, m: mesh::Mesh) -> Result<Vec<crate::cloud::Point>> {
+    match opts.mesh_samples {
+        None => Ok(m.vertices),
+        Some(n) => crate::generator::sampling::sample_surface(&m, n, MESH_SAMPLE_SEED)
+            .map_err(|e| GgsError::in_file(path, format!("cannot sample the mesh: {e}"))),
+    }
+}
+
+/// Read any supported file held in memory, as [`read_cloud_with`] would read it from disk
+/// (the fuzz targets' entry point; `path` names the file in errors and, without a forced
+/// format, gives the extension). Points are returned as parsed, NaN included.
+pub fn parse_bytes(
+    path: &Path,
+    bytes: &[u8],
+    opts: &ReadOptions,
+) -> Result<Vec<crate::cloud::Point>> {
+    let mut r = std::io::Cursor::new(bytes);
+    let fmt = match opts.format {
+        Some(f) => f,
+        None => detect(path, &mut r)?,
+    };
+    let len = Some(bytes.len() as u64);
+    match fmt {
+        Format::Ply => ply::read_ply(path, &mut r, len),
+        Format::Pcd => pcd::read_pcd(path, &mut r, len),
+        Format::KittiBin => kitti::read_kitti_bin(path, &mut r, bytes.len() as u64),
+        Format::Las => las::read_las(path, std::io::Cursor::new(bytes.to_vec())),
+        Format::E57 => e57::read_e57(path, r, opts.e57),
+        Format::Npz => npz::read_npz_points(path, r, opts.npz_array.as_deref()),
+        Format::Obj => sampled(path, opts, mesh::parse_obj(path, bytes)?),
+        Format::Stl => sampled(path, opts, mesh::parse_stl(path, bytes)?),
+        Format::Text => xyz::parse_xyz(path, bytes),
+        Format::Npy => npy::points_of(path, &npy::parse_npy(path, bytes)?),
+    }
 }
 
 /// Write a point cloud in the format of `format`, or of the path's extension: PLY (binary
 /// little endian, doubles), PCD (binary, doubles), XYZ/TXT/PTS (text, round-trip precision),
-/// NPY (float64 N×3), KITTI `.bin` (float32, reflectance 0) or LAS/LAZ (32-bit integers
-/// with a per-file scale: see [`las::write_las`]). CSV gets a comma-free text
-/// layout too (`x y z` per line), which ggs and most tools read. Atomic.
+/// NPY (float64 N×3), KITTI `.bin` (float32, reflectance 0), LAS/LAZ (32-bit integers
+/// with a per-file scale: see [`las::write_las`]) or E57 (one scan, f64). CSV gets a
+/// comma-free text layout too (`x y z` per line), which ggs and most tools read. Atomic.
 pub fn write_cloud(
     path: &Path,
     points: &[crate::cloud::Point],
@@ -157,7 +266,7 @@ pub fn write_cloud(
         .or_else(|| Format::from_extension(path))
         .ok_or_else(|| GgsError::UnknownFormat {
             path: path.to_path_buf(),
-            what: "(writable: .ply, .pcd, .xyz/.txt/.pts/.csv, .npy, .bin, .las, .laz)".to_string(),
+            what: format!("(writable: {WRITABLE})"),
         })?;
     match fmt {
         Format::Ply => ply::write_ply(path, points, None, Default::default()),
@@ -169,12 +278,16 @@ pub fn write_cloud(
         }
         Format::KittiBin => kitti::write_kitti_bin(path, points),
         Format::Las => las::write_las(path, points),
-        Format::Obj | Format::Stl => Err(GgsError::UnknownFormat {
+        Format::E57 => e57::write_e57(path, &[e57::E57Scan { points, pose: None }]),
+        Format::Obj | Format::Stl | Format::Npz => Err(GgsError::UnknownFormat {
             path: path.to_path_buf(),
-            what: "(meshes are read, not written; writable: .ply, .pcd, .xyz/.txt/.pts/.csv, .npy, .bin, .las, .laz)".to_string(),
+            what: format!("(meshes and .npz are read, not written; writable: {WRITABLE})"),
         }),
     }
 }
+
+/// Extensions [`write_cloud`] writes.
+pub const WRITABLE: &str = ".ply, .pcd, .xyz/.txt/.pts/.csv, .npy, .bin, .las, .laz, .e57";
 
 /// Write `bytes` to `path` atomically: a temporary file in the same directory, flushed and
 /// synced, then renamed over `path`. A failure leaves no partial `path` behind.

@@ -97,6 +97,23 @@ pub fn parse_npy(path: &Path, bytes: &[u8]) -> Result<NpyArray> {
     Ok(NpyArray { shape, data })
 }
 
+/// The points of an array of shape [N, 3] (or [N, k≥3]: the first three columns).
+pub fn points_of(path: &Path, a: &NpyArray) -> Result<Vec<crate::cloud::Point>> {
+    if a.shape.len() != 2 || a.shape[1] < 3 {
+        return Err(GgsError::in_file(
+            path,
+            format!(
+                "expected an array of shape [N, 3] or [N, k≥3], found {:?}",
+                a.shape
+            ),
+        ));
+    }
+    Ok(a.data
+        .chunks_exact(a.shape[1])
+        .map(|r| [r[0], r[1], r[2]])
+        .collect())
+}
+
 /// Write a 2-D float64 array (C order, little endian, format 1.0), atomically.
 pub fn write_npy_f64(path: &Path, rows: usize, cols: usize, data: &[f64]) -> Result<()> {
     assert_eq!(rows * cols, data.len());

@@ -1,8 +1,10 @@
 //! PCD point clouds (PCL): `VERSION .5`/`0.6`/`0.7` headers, with or without `VIEWPOINT`;
 //! `DATA ascii`, `binary` and `binary_compressed` (LZF). Only fields `x`, `y`, `z` are read.
 
+use super::stream;
 use crate::cloud::Point;
 use crate::error::{GgsError, Result};
+use std::io::BufRead;
 use std::path::Path;
 
 #[derive(Debug, Clone)]
@@ -13,8 +15,90 @@ struct Field {
     count: usize,
 }
 
-/// Read the points of a PCD file.
+/// What a PCD header says.
+struct PcdHeader {
+    fields: Vec<Field>,
+    /// Indices of the fields `x`, `y`, `z`.
+    xyz: Vec<usize>,
+    /// Number of points.
+    n: usize,
+    /// `ascii`, `binary` or `binary_compressed` (lower case).
+    data_kind: String,
+    /// Byte offset of the first data byte.
+    data_start: usize,
+    /// Header lines, the DATA line included.
+    lines: usize,
+}
+
+/// The longest header accepted (comments included).
+const MAX_HEADER_BYTES: usize = 1 << 20;
+
+/// Read the points of a PCD file from a stream positioned at its first byte; `file_len`
+/// (when known) bounds what an overstated POINTS may reserve. `DATA binary` files are
+/// decoded [`stream::CHUNK_BYTES`] at a time (bounded memory beside the output); ascii and
+/// binary_compressed files are read whole, then parsed by [`parse_pcd`].
+pub fn read_pcd<R: BufRead>(path: &Path, r: &mut R, file_len: Option<u64>) -> Result<Vec<Point>> {
+    let mut header = stream::read_header(path, r, MAX_HEADER_BYTES, "DATA", |l| {
+        l.split_whitespace()
+            .next()
+            .is_some_and(|k| k.eq_ignore_ascii_case("DATA"))
+    })?;
+    let h = parse_header(path, &header)?;
+    if h.data_kind != "binary" {
+        r.read_to_end(&mut header)
+            .map_err(|e| GgsError::io(path, e))?;
+        return parse_pcd(path, &header);
+    }
+    let (field_off, stride) = row_layout(&h.fields);
+    let room = file_len.map_or(1 << 20, |l| {
+        l.saturating_sub(h.data_start as u64) / stride.max(1) as u64
+    });
+    let mut out = Vec::with_capacity((h.n as u64).min(room) as usize);
+    let fx: [(&Field, usize); 3] =
+        std::array::from_fn(|d| (&h.fields[h.xyz[d]], field_off[h.xyz[d]]));
+    stream::read_records(
+        path,
+        r,
+        h.data_start as u64,
+        stride,
+        h.n as u64,
+        "POINTS",
+        stream::CHUNK_BYTES,
+        |rec| fx.map(|(f, o)| decode(f, &rec[o..])),
+        &mut out,
+    )?;
+    Ok(out)
+}
+
+/// Byte offset of each field in a row, and the row size.
+fn row_layout(fields: &[Field]) -> (Vec<usize>, usize) {
+    let mut field_off = Vec::with_capacity(fields.len());
+    let mut stride = 0;
+    for f in fields {
+        field_off.push(stride);
+        stride += f.size * f.count;
+    }
+    (field_off, stride)
+}
+
+/// Read the points of a PCD file held in memory.
 pub fn parse_pcd(path: &Path, bytes: &[u8]) -> Result<Vec<Point>> {
+    let h = parse_header(path, bytes)?;
+    let data = &bytes[h.data_start..];
+    let (fields, xyz, n, pos) = (&h.fields, &h.xyz, h.n, h.data_start);
+    match h.data_kind.as_str() {
+        "ascii" => read_ascii(path, data, h.lines, fields, xyz, n),
+        "binary" => read_binary(path, data, pos, fields, xyz, n),
+        "binary_compressed" => read_compressed(path, data, pos, fields, xyz, n),
+        other => Err(GgsError::at_line(
+            path,
+            h.lines,
+            format!("unknown DATA '{other}' (expected ascii, binary or binary_compressed)"),
+        )),
+    }
+}
+
+fn parse_header(path: &Path, bytes: &[u8]) -> Result<PcdHeader> {
     let mut pos = 0usize;
     let mut line_no = 0usize;
     let mut names: Vec<String> = Vec::new();
@@ -137,7 +221,9 @@ pub fn parse_pcd(path: &Path, bytes: &[u8]) -> Result<Vec<Point>> {
     }
     let n = match (points, width) {
         (Some(p), _) => p,
-        (None, Some(w)) => w * height,
+        (None, Some(w)) => w.checked_mul(height).ok_or_else(|| {
+            GgsError::in_file(path, format!("WIDTH {w} × HEIGHT {height} overflows"))
+        })?,
         (None, None) => {
             return Err(GgsError::in_file(
                 path,
@@ -145,6 +231,18 @@ pub fn parse_pcd(path: &Path, bytes: &[u8]) -> Result<Vec<Point>> {
             ))
         }
     };
+    fields
+        .iter()
+        .try_fold(0usize, |acc, f| {
+            acc.checked_add(f.size.checked_mul(f.count)?)
+        })
+        .and_then(|row| row.checked_mul(n))
+        .ok_or_else(|| {
+            GgsError::in_file(
+                path,
+                format!("{n} points of the declared fields need more bytes than a file can hold"),
+            )
+        })?;
     let xyz: Vec<usize> = ["x", "y", "z"]
         .iter()
         .map(|name| {
@@ -154,17 +252,21 @@ pub fn parse_pcd(path: &Path, bytes: &[u8]) -> Result<Vec<Point>> {
                 .ok_or_else(|| GgsError::in_file(path, format!("no field '{name}' in FIELDS")))
         })
         .collect::<Result<_>>()?;
-    let data = &bytes[pos..];
-    match data_kind.as_str() {
-        "ascii" => read_ascii(path, data, line_no, &fields, &xyz, n),
-        "binary" => read_binary(path, data, pos, &fields, &xyz, n),
-        "binary_compressed" => read_compressed(path, data, pos, &fields, &xyz, n),
-        other => Err(GgsError::at_line(
+    if !matches!(data_kind.as_str(), "ascii" | "binary" | "binary_compressed") {
+        return Err(GgsError::at_line(
             path,
             line_no,
-            format!("unknown DATA '{other}' (expected ascii, binary or binary_compressed)"),
-        )),
+            format!("unknown DATA '{data_kind}' (expected ascii, binary or binary_compressed)"),
+        ));
     }
+    Ok(PcdHeader {
+        fields,
+        xyz,
+        n,
+        data_kind,
+        data_start: pos,
+        lines: line_no,
+    })
 }
 
 fn decode(f: &Field, b: &[u8]) -> f64 {
@@ -251,12 +353,7 @@ fn read_binary(
     xyz: &[usize],
     n: usize,
 ) -> Result<Vec<Point>> {
-    let mut field_off = Vec::with_capacity(fields.len());
-    let mut stride = 0;
-    for f in fields {
-        field_off.push(stride);
-        stride += f.size * f.count;
-    }
+    let (field_off, stride) = row_layout(fields);
     let need = stride
         .checked_mul(n)
         .ok_or_else(|| GgsError::in_file(path, "POINTS too large"))?;

@@ -2,10 +2,14 @@
 //! types and order; extra elements (`range_grid`, faces, …), `comment` and `obj_info` lines
 //! are skipped. Only the `vertex` element's `x`, `y`, `z` are read.
 
-use super::write_atomic;
+use super::{stream, write_atomic};
 use crate::cloud::Point;
 use crate::error::{GgsError, Result};
+use std::io::BufRead;
 use std::path::Path;
+
+/// The longest header accepted (comments included).
+const MAX_HEADER_BYTES: usize = 16 << 20;
 
 #[derive(Debug, Clone, Copy, PartialEq)]
 enum Scalar {
@@ -43,21 +47,28 @@ impl Scalar {
         }
     }
 
+    /// Decode one value from the first `self.size()` bytes of `b`.
+    #[inline]
     fn decode(self, b: &[u8], little: bool) -> f64 {
-        let mut a = [0u8; 8];
-        a[..b.len()].copy_from_slice(b);
-        if !little {
-            a[..b.len()].reverse();
+        macro_rules! get {
+            ($t:ty, $n:expr) => {{
+                let a: [u8; $n] = b[..$n].try_into().expect("caller passes enough bytes");
+                if little {
+                    <$t>::from_le_bytes(a)
+                } else {
+                    <$t>::from_be_bytes(a)
+                }
+            }};
         }
         match self {
-            Scalar::I8 => a[0] as i8 as f64,
-            Scalar::U8 => a[0] as f64,
-            Scalar::I16 => i16::from_le_bytes([a[0], a[1]]) as f64,
-            Scalar::U16 => u16::from_le_bytes([a[0], a[1]]) as f64,
-            Scalar::I32 => i32::from_le_bytes([a[0], a[1], a[2], a[3]]) as f64,
-            Scalar::U32 => u32::from_le_bytes([a[0], a[1], a[2], a[3]]) as f64,
-            Scalar::F32 => f32::from_le_bytes([a[0], a[1], a[2], a[3]]) as f64,
-            Scalar::F64 => f64::from_le_bytes(a),
+            Scalar::I8 => b[0] as i8 as f64,
+            Scalar::U8 => b[0] as f64,
+            Scalar::I16 => get!(i16, 2) as f64,
+            Scalar::U16 => get!(u16, 2) as f64,
+            Scalar::I32 => get!(i32, 4) as f64,
+            Scalar::U32 => get!(u32, 4) as f64,
+            Scalar::F32 => get!(f32, 4) as f64,
+            Scalar::F64 => get!(f64, 8),
         }
     }
 }
@@ -188,7 +199,95 @@ fn parse_header(path: &Path, bytes: &[u8]) -> Result<Header> {
     })
 }
 
-/// Read the vertices of a PLY file.
+/// Read the vertices of a PLY file from a stream positioned at its first byte; `file_len`
+/// (when known) bounds what an overstated count may reserve.
+///
+/// Binary files whose elements up to `vertex` have fixed-size rows (no lists: the usual
+/// case) are streamed: the elements before `vertex` are skipped, the vertex rows decoded
+/// [`stream::CHUNK_BYTES`] at a time and the elements after it never read, so the memory
+/// beside the output is one chunk. Ascii files and rows with lists are read whole, then
+/// parsed by [`parse_ply`].
+pub fn read_ply<R: BufRead>(path: &Path, r: &mut R, file_len: Option<u64>) -> Result<Vec<Point>> {
+    read_ply_chunked(path, r, file_len, stream::CHUNK_BYTES)
+}
+
+fn read_ply_chunked<R: BufRead>(
+    path: &Path,
+    r: &mut R,
+    file_len: Option<u64>,
+    chunk_bytes: usize,
+) -> Result<Vec<Point>> {
+    let mut header = stream::read_header(path, r, MAX_HEADER_BYTES, "'end_header'", |l| {
+        l == "end_header"
+    })?;
+    let h = parse_header(path, &header)?;
+    let vi = vertex_element(path, &h)?;
+    let row_size = |e: &Element| -> Option<usize> {
+        e.props
+            .iter()
+            .map(|p| match p {
+                Property::Scalar(t, _) => Some(t.size()),
+                Property::List(..) => None,
+            })
+            .sum()
+    };
+    let fixed =
+        h.encoding != Encoding::Ascii && h.elements[..=vi].iter().all(|e| row_size(e).is_some());
+    if !fixed {
+        r.read_to_end(&mut header)
+            .map_err(|e| GgsError::io(path, e))?;
+        return parse_ply(path, &header);
+    }
+    let mut pos = h.data_start as u64;
+    for e in &h.elements[..vi] {
+        let len = (row_size(e).unwrap_or(0) as u64)
+            .checked_mul(e.count as u64)
+            .ok_or_else(|| {
+                GgsError::at_byte(
+                    path,
+                    pos,
+                    format!(
+                        "element '{}': {} rows overflow the file size",
+                        e.name, e.count
+                    ),
+                )
+            })?;
+        stream::skip(path, r, pos, len, &format!("element '{}'", e.name))?;
+        pos += len;
+    }
+    let el = &h.elements[vi];
+    let stride = row_size(el).unwrap_or(0);
+    let xyz = xyz_properties(path, &h, vi)?;
+    let mut offsets = [(0usize, Scalar::F32); 3];
+    for (d, &pi) in xyz.iter().enumerate() {
+        let off: usize = el.props[..pi]
+            .iter()
+            .map(|p| match p {
+                Property::Scalar(t, _) | Property::List(t, _, _) => t.size(),
+            })
+            .sum();
+        if let Property::Scalar(t, _) = el.props[pi] {
+            offsets[d] = (off, t);
+        }
+    }
+    let little = h.encoding == Encoding::BinaryLe;
+    let room = file_len.map_or(1 << 20, |l| l.saturating_sub(pos) / stride.max(1) as u64);
+    let mut out = Vec::with_capacity((el.count as u64).min(room) as usize);
+    stream::read_records(
+        path,
+        r,
+        pos,
+        stride,
+        el.count as u64,
+        "element 'vertex'",
+        chunk_bytes,
+        |rec| offsets.map(|(o, t)| t.decode(&rec[o..], little)),
+        &mut out,
+    )?;
+    Ok(out)
+}
+
+/// Read the vertices of a PLY file held in memory.
 pub fn parse_ply(path: &Path, bytes: &[u8]) -> Result<Vec<Point>> {
     let h = parse_header(path, bytes)?;
     read_vertices(path, bytes, &h, &mut None)
@@ -201,31 +300,37 @@ fn read_vertices(
     h: &Header,
     faces: &mut Option<FaceSink>,
 ) -> Result<Vec<Point>> {
-    let vi = h
-        .elements
-        .iter()
-        .position(|e| e.name == "vertex")
-        .ok_or_else(|| GgsError::in_file(path, "no 'vertex' element in the header"))?;
-    let xyz: Vec<usize> = ["x", "y", "z"]
-        .iter()
-        .map(|n| {
-            h.elements[vi]
-                .props
-                .iter()
-                .position(|p| matches!(p, Property::Scalar(_, name) if name == n))
-                .ok_or_else(|| {
-                    GgsError::in_file(
-                        path,
-                        format!("the vertex element has no scalar property '{n}'"),
-                    )
-                })
-        })
-        .collect::<Result<_>>()?;
+    let vi = vertex_element(path, h)?;
+    let xyz = xyz_properties(path, h, vi)?;
     match h.encoding {
         Encoding::Ascii => read_ascii(path, bytes, h, vi, &xyz, faces),
         Encoding::BinaryLe => read_binary(path, bytes, h, vi, &xyz, true, faces),
         Encoding::BinaryBe => read_binary(path, bytes, h, vi, &xyz, false, faces),
     }
+}
+
+fn vertex_element(path: &Path, h: &Header) -> Result<usize> {
+    h.elements
+        .iter()
+        .position(|e| e.name == "vertex")
+        .ok_or_else(|| GgsError::in_file(path, "no 'vertex' element in the header"))
+}
+
+/// Indices of the vertex element's scalar properties `x`, `y`, `z`.
+fn xyz_properties(path: &Path, h: &Header, vi: usize) -> Result<[usize; 3]> {
+    let find = |n: &str| {
+        h.elements[vi]
+            .props
+            .iter()
+            .position(|p| matches!(p, Property::Scalar(_, name) if name == n))
+            .ok_or_else(|| {
+                GgsError::in_file(
+                    path,
+                    format!("the vertex element has no scalar property '{n}'"),
+                )
+            })
+    };
+    Ok([find("x")?, find("y")?, find("z")?])
 }
 
 /// Where face polygons are collected: the face element, its index list property, and the

@@ -1,0 +1,228 @@
+//! Streaming helpers for large binary files: fixed-size records decoded chunk by chunk, so a
+//! 50-million-point file is read with a few MB of buffer beside the output points.
+
+use crate::cloud::Point;
+use crate::error::{GgsError, Result};
+use std::io::{BufRead, Read};
+use std::path::Path;
+
+/// Bytes read per chunk (rounded down to whole records).
+pub const CHUNK_BYTES: usize = 4 << 20;
+
+/// Read until `buf` is full or the source ends; returns the bytes read.
+pub fn read_full<R: Read>(r: &mut R, buf: &mut [u8]) -> std::io::Result<usize> {
+    let mut got = 0;
+    while got < buf.len() {
+        match r.read(&mut buf[got..]) {
+            Ok(0) => break,
+            Ok(n) => got += n,
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+            Err(e) => return Err(e),
+        }
+    }
+    Ok(got)
+}
+
+/// Decode `count` records of `stride` bytes each from `r`, whose next byte is byte `start` of
+/// the file, appending `decode(record)` to `out`. `chunk_bytes` (≥ `stride`) bounds the
+/// buffer. A source that ends early is an error at the byte where it ended, naming `what`.
+#[allow(clippy::too_many_arguments)]
+pub fn read_records<R: Read>(
+    path: &Path,
+    r: &mut R,
+    start: u64,
+    stride: usize,
+    count: u64,
+    what: &str,
+    chunk_bytes: usize,
+    mut decode: impl FnMut(&[u8]) -> Point,
+    out: &mut Vec<Point>,
+) -> Result<()> {
+    if stride == 0 {
+        return Err(GgsError::in_file(
+            path,
+            format!("{what}: records of 0 bytes"),
+        ));
+    }
+    let per_chunk = (chunk_bytes / stride).max(1);
+    let mut buf = vec![0u8; per_chunk * stride];
+    let mut done = 0u64;
+    while done < count {
+        let k = (count - done).min(per_chunk as u64) as usize;
+        let want = k * stride;
+        let got = read_full(r, &mut buf[..want]).map_err(|e| GgsError::io(path, e))?;
+        let whole = got / stride;
+        out.extend(buf[..whole * stride].chunks_exact(stride).map(&mut decode));
+        if got < want {
+            let at = start + (done + whole as u64) * stride as u64;
+            return Err(GgsError::at_byte(
+                path,
+                start + done * stride as u64 + got as u64,
+                format!(
+                    "truncated: {what} declares {count} records of {stride} bytes; record {} (at byte {at}) runs past the end of the file",
+                    done + whole as u64
+                ),
+            ));
+        }
+        done += k as u64;
+    }
+    Ok(())
+}
+
+/// Skip `len` bytes of `r` (at byte `start` of the file), or fail naming `what`.
+pub fn skip<R: Read>(path: &Path, r: &mut R, start: u64, len: u64, what: &str) -> Result<()> {
+    let copied =
+        std::io::copy(&mut r.take(len), &mut std::io::sink()).map_err(|e| GgsError::io(path, e))?;
+    if copied < len {
+        return Err(GgsError::at_byte(
+            path,
+            start + copied,
+            format!("truncated: {what} needs {len} bytes, the file ends after {copied}"),
+        ));
+    }
+    Ok(())
+}
+
+/// Read header lines up to and including the first line for which `is_last(trimmed line)`
+/// holds; returns the header bytes. At most `max_bytes`: a file without that line, or a
+/// binary file read as a header, fails there instead of filling memory.
+pub fn read_header<R: BufRead>(
+    path: &Path,
+    r: &mut R,
+    max_bytes: usize,
+    what_ends_it: &str,
+    is_last: impl Fn(&str) -> bool,
+) -> Result<Vec<u8>> {
+    let mut header = Vec::new();
+    let mut line_no = 0usize;
+    loop {
+        let before = header.len();
+        let n = r
+            .take((max_bytes - before) as u64 + 1)
+            .read_until(b'\n', &mut header)
+            .map_err(|e| GgsError::io(path, e))?;
+        line_no += 1;
+        if n == 0 {
+            return Err(GgsError::at_line(
+                path,
+                line_no,
+                format!("the file ends before the header's {what_ends_it} line"),
+            ));
+        }
+        if header.len() > max_bytes {
+            return Err(GgsError::at_byte(
+                path,
+                max_bytes as u64,
+                format!("no {what_ends_it} line in the first {max_bytes} bytes: not a header"),
+            ));
+        }
+        let line = String::from_utf8_lossy(&header[before..]);
+        if header.last() == Some(&b'\n') && is_last(line.trim()) {
+            return Ok(header);
+        }
+        if header.last() != Some(&b'\n') {
+            return Err(GgsError::at_line(
+                path,
+                line_no,
+                format!("the file ends before the header's {what_ends_it} line"),
+            ));
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::io::Cursor;
+
+    fn decode(b: &[u8]) -> Point {
+        [b[0] as f64, b[1] as f64, b[2] as f64]
+    }
+
+    #[test]
+    fn records_across_chunk_boundaries() {
+        let bytes: Vec<u8> = (0..30u8).collect();
+        for chunk in [1, 3, 4, 7, 100] {
+            let mut out = Vec::new();
+            read_records(
+                Path::new("f"),
+                &mut Cursor::new(&bytes),
+                0,
+                3,
+                10,
+                "x",
+                chunk,
+                decode,
+                &mut out,
+            )
+            .unwrap();
+            assert_eq!(out.len(), 10, "chunk {chunk}");
+            assert_eq!(out[9], [27.0, 28.0, 29.0]);
+        }
+    }
+
+    #[test]
+    fn truncated_records_name_the_byte() {
+        let bytes = vec![0u8; 10];
+        let mut out = Vec::new();
+        let e = read_records(
+            Path::new("f.bin"),
+            &mut Cursor::new(&bytes),
+            100,
+            4,
+            3,
+            "element 'vertex'",
+            8,
+            decode,
+            &mut out,
+        )
+        .unwrap_err();
+        assert_eq!(e.location(), Some(crate::error::Location::Byte(110)));
+        let s = e.to_string();
+        assert!(
+            s.contains("f.bin") && s.contains("record 2") && s.contains("vertex"),
+            "{s}"
+        );
+        assert_eq!(out.len(), 2);
+    }
+
+    #[test]
+    fn skip_and_header_errors() {
+        let e = skip(
+            Path::new("f"),
+            &mut Cursor::new(vec![0u8; 5]),
+            7,
+            9,
+            "element 'camera'",
+        )
+        .unwrap_err();
+        assert_eq!(e.location(), Some(crate::error::Location::Byte(12)));
+        let h = read_header(
+            Path::new("f"),
+            &mut Cursor::new(b"a\nb\nend\nrest"),
+            100,
+            "'end'",
+            |l| l == "end",
+        )
+        .unwrap();
+        assert_eq!(h, b"a\nb\nend\n");
+        let e = read_header(
+            Path::new("f"),
+            &mut Cursor::new(b"a\nb\n"),
+            100,
+            "'end'",
+            |l| l == "end",
+        )
+        .unwrap_err();
+        assert_eq!(e.location(), Some(crate::error::Location::Line(3)));
+        let e = read_header(
+            Path::new("f"),
+            &mut Cursor::new(vec![b'x'; 1000]),
+            64,
+            "'end'",
+            |l| l == "end",
+        )
+        .unwrap_err();
+        assert_eq!(e.location(), Some(crate::error::Location::Byte(64)));
+    }
+}
