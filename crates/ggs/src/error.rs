@@ -62,6 +62,15 @@ impl GgsError {
         }
     }
 
+    /// A parse error at a location.
+    pub fn at(path: &std::path::Path, location: Location, message: impl Into<String>) -> Self {
+        GgsError::Parse {
+            path: path.to_path_buf(),
+            location,
+            message: message.into(),
+        }
+    }
+
     /// A parse error that concerns the file as a whole.
     pub fn in_file(path: &std::path::Path, message: impl Into<String>) -> Self {
         GgsError::Parse {

@@ -92,7 +92,8 @@ pub fn e57_scans<R: Read + Seek>(path: &Path, r: R) -> Result<Vec<E57ScanInfo>> 
 /// Read the points of an E57 file. Points the file marks invalid (no coordinates, or a
 /// direction only) come back as NaN, so that [`crate::io::read_cloud`] drops and counts
 /// them.
-pub fn read_e57<R: Read + Seek>(path: &Path, r: R, opts: E57Options) -> Result<Vec<Point>> {
+pub fn read_e57<R: Read + Seek>(path: &Path, mut r: R, opts: E57Options) -> Result<Vec<Point>> {
+    let file_len = super::las::stream_len(&mut r).map_err(|e| GgsError::io(path, e))?;
     let mut reader = e57::E57Reader::new(r).map_err(|e| crate_error(path, "header", e))?;
     let clouds = reader.pointclouds();
     let chosen: Vec<usize> = match opts.scan {
@@ -109,8 +110,8 @@ pub fn read_e57<R: Read + Seek>(path: &Path, r: R, opts: E57Options) -> Result<V
         None => (0..clouds.len()).collect(),
     };
     let total: u64 = chosen.iter().map(|&k| clouds[k].records).sum();
-    // The record counts come from the file: reserve no more than 2^24 up front.
-    let mut out = Vec::with_capacity(total.min(1 << 24) as usize);
+    // The record counts come from the file: reserve no more than one point per byte.
+    let mut out = Vec::with_capacity(total.min(file_len) as usize);
     for k in chosen {
         let pc = &clouds[k];
         if !pc.has_cartesian() && !pc.has_spherical() {
@@ -331,5 +332,76 @@ mod tests {
             e.contains("s.e57") && e.contains("scan 3") && e.contains("quaternion"),
             "{e}"
         );
+    }
+}
+
+/// One unit test per error path the crate's own checks do not make unreachable.
+#[cfg(test)]
+mod error_paths {
+    use super::*;
+    use crate::error::Location::File;
+    use std::io::Cursor;
+
+    fn read(path: &Path, b: &[u8]) -> Result<Vec<Point>> {
+        read_e57(path, Cursor::new(b), E57Options::default())
+    }
+
+    fn scan_5(path: &Path, b: &[u8]) -> Result<Vec<Point>> {
+        read_e57(
+            path,
+            Cursor::new(b),
+            E57Options {
+                scan: Some(5),
+                apply_pose: true,
+            },
+        )
+    }
+
+    fn one_scan() -> Vec<u8> {
+        let dir = std::env::temp_dir().join(format!("ggs-e57e-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let p = dir.join(format!("{:?}.e57", std::thread::current().id()));
+        let pts: Vec<Point> = (0..2000).map(|i| [i as f64, 1.0, 2.0]).collect();
+        write_e57(
+            &p,
+            &[E57Scan {
+                points: &pts,
+                pose: None,
+            }],
+        )
+        .unwrap();
+        let b = std::fs::read(&p).unwrap();
+        let _ = std::fs::remove_file(&p);
+        b
+    }
+
+    fn translation(path: &Path, _: &[u8]) -> Result<Rigid> {
+        let t = e57::Transform {
+            rotation: e57::Quaternion {
+                w: 1.0,
+                x: 0.0,
+                y: 0.0,
+                z: 0.0,
+            },
+            translation: e57::Translation {
+                x: f64::NAN,
+                y: 0.0,
+                z: 0.0,
+            },
+        };
+        pose(path, 0, &t)
+    }
+
+    error_cases! { read;
+        not_e57: b"ASTM-E57 but nothing after" => File, "E57 header";
+        page_checksum: { let mut b = one_scan(); b[2000] ^= 0x40; b } => File, "E57";
+    }
+
+    error_cases! { scan_5;
+        scan_out_of_range: one_scan() => File, "scan 5 asked for, the file holds 1 scan(s)";
+    }
+
+    error_cases! { translation;
+        translation_not_finite: b"" => File, "scan 0: pose translation";
     }
 }

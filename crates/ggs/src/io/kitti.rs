@@ -74,3 +74,23 @@ mod tests {
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }
+
+/// One unit test per error path.
+#[cfg(test)]
+mod error_paths {
+    use super::*;
+    use crate::error::Location::Byte;
+
+    fn short_stream(path: &Path, b: &[u8]) -> Result<Vec<Point>> {
+        // The file size says 3 records, the stream holds fewer (a file cut while reading).
+        read_kitti_bin(path, &mut std::io::Cursor::new(b), 48)
+    }
+
+    error_cases! { parse_kitti_bin;
+        partial_record: [0u8; 40] => Byte(32), "16-byte records";
+    }
+
+    error_cases! { short_stream;
+        stream_ends_early: [0u8; 20] => Byte(20), "record 1 (at byte 16) runs past the end";
+    }
+}

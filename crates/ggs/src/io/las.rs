@@ -3,7 +3,7 @@
 
 use crate::cloud::Point;
 use crate::error::{GgsError, Result};
-use std::io::{Read, Seek};
+use std::io::{Read, Seek, SeekFrom};
 use std::path::Path;
 
 /// Points decoded per call into the `las` crate (bounds the memory beside the output).
@@ -12,13 +12,19 @@ const BATCH: u64 = 1 << 16;
 /// Read every point of a LAS or LAZ file (the format is in the header, not the extension)
 /// from a stream positioned at its first byte. Points are decoded [`BATCH`] at a time, so
 /// the memory beside the output is one batch of `las::Point`s.
-pub fn read_las<R: Read + Seek + Send + Sync + 'static>(path: &Path, r: R) -> Result<Vec<Point>> {
+pub fn read_las<R: Read + Seek + Send + Sync + 'static>(
+    path: &Path,
+    mut r: R,
+) -> Result<Vec<Point>> {
+    check_laz_chunk_table(path, &mut r)?;
+    let file_len = stream_len(&mut r).map_err(|e| GgsError::io(path, e))?;
     let mut reader =
         las::Reader::new(r).map_err(|e| GgsError::in_file(path, format!("LAS header: {e}")))?;
     let header = reader.header();
     let n = header.number_of_points();
     let at = header.point_format().len() as u64;
-    let mut out = Vec::with_capacity(n.min(1 << 24) as usize);
+    // The count comes from the header: reserve no more than one point per byte of file.
+    let mut out = Vec::with_capacity(n.min(file_len) as usize);
     let mut batch = Vec::with_capacity(BATCH.min(n) as usize);
     while (out.len() as u64) < n {
         batch.clear();
@@ -46,6 +52,68 @@ pub fn read_las<R: Read + Seek + Send + Sync + 'static>(path: &Path, r: R) -> Re
         ));
     }
     Ok(out)
+}
+
+/// The length of a stream, which is left at its start.
+pub(crate) fn stream_len<R: Seek>(r: &mut R) -> std::io::Result<u64> {
+    let len = r.seek(SeekFrom::End(0))?;
+    r.seek(SeekFrom::Start(0))?;
+    Ok(len)
+}
+
+/// Bytes of a LAZ chunk's first point at the least (it is stored raw: point format 0 is 20
+/// bytes, the others more).
+const MIN_CHUNK_BYTES: u64 = 20;
+
+/// Refuse a LAZ file whose chunk table declares more chunks than its point data can hold.
+///
+/// The `laz` crate (0.12) reserves memory for the declared number of chunks before reading
+/// them (`ChunkTable::with_capacity`), so a corrupt count (found by fuzzing: 0xC320506D
+/// chunks in a 2 kB file) asks for tens of GB and aborts the process. Every chunk starts
+/// with one raw point, so `chunks ≤ (chunk table offset − point data offset) / 20`. The
+/// table is located as the `laz` crate locates it; anything this check cannot read is left
+/// for the crate to report. The stream is rewound to its start.
+fn check_laz_chunk_table<R: Read + Seek>(path: &Path, r: &mut R) -> Result<()> {
+    let io = |e| GgsError::io(path, e);
+    let mut head = [0u8; 105];
+    let got = super::stream::read_full(r, &mut head).map_err(io)?;
+    let found = (|| -> std::io::Result<Option<(u64, u64, u64)>> {
+        if got < head.len() || &head[..4] != b"LASF" || head[104] >> 6 == 0 {
+            return Ok(None);
+        }
+        let start = u32::from_le_bytes(head[96..100].try_into().expect("4 bytes")) as u64;
+        let mut b8 = [0u8; 8];
+        r.seek(SeekFrom::Start(start))?;
+        r.read_exact(&mut b8)?;
+        let mut table = i64::from_le_bytes(b8);
+        if table <= start as i64 {
+            r.seek(SeekFrom::End(-8))?;
+            r.read_exact(&mut b8)?;
+            table = i64::from_le_bytes(b8);
+            if table <= start as i64 {
+                return Ok(None);
+            }
+        }
+        r.seek(SeekFrom::Start(table as u64))?;
+        r.read_exact(&mut b8)?;
+        let chunks = u32::from_le_bytes(b8[4..8].try_into().expect("4 bytes")) as u64;
+        Ok(Some((start, table as u64, chunks)))
+    })();
+    r.seek(SeekFrom::Start(0)).map_err(io)?;
+    if let Ok(Some((start, table, chunks))) = found {
+        let room = (table - start) / MIN_CHUNK_BYTES;
+        if chunks > room {
+            return Err(GgsError::at_byte(
+                path,
+                table + 4,
+                format!(
+                    "corrupt LAZ chunk table: {chunks} chunks declared, but the {} bytes of compressed points (bytes {start}..{table}) hold at most {room}",
+                    table - start
+                ),
+            ));
+        }
+    }
+    Ok(())
 }
 
 /// Read a LAS or LAZ file held in memory.
@@ -148,5 +216,55 @@ mod tests {
             .to_string();
         assert!(e.contains("LAS header"), "{e}");
         std::fs::remove_dir_all(&dir).unwrap();
+    }
+}
+
+/// One unit test per error path.
+#[cfg(test)]
+mod error_paths {
+    use super::*;
+    use crate::error::Location::{Byte, File};
+
+    /// A LAS (or LAZ) file of 10 points, as bytes.
+    fn las_bytes(ext: &str) -> Vec<u8> {
+        static CALLS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+        let k = CALLS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        let dir = std::env::temp_dir().join(format!("ggs-las-e-{ext}-{}-{k}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let p = dir.join(format!("c.{ext}"));
+        let pts: Vec<Point> = (0..10).map(|i| [i as f64, 2.0 * i as f64, 0.5]).collect();
+        write_las(&p, &pts).unwrap();
+        let b = std::fs::read(&p).unwrap();
+        std::fs::remove_dir_all(&dir).unwrap();
+        b
+    }
+
+    fn read(path: &Path, b: &[u8]) -> Result<Vec<Point>> {
+        parse_las(path, b.to_vec())
+    }
+
+    /// Byte offset of a LAZ file's chunk count.
+    fn chunk_count_at(b: &[u8]) -> usize {
+        let start = u32::from_le_bytes(b[96..100].try_into().unwrap()) as usize;
+        i64::from_le_bytes(b[start..start + 8].try_into().unwrap()) as usize + 4
+    }
+
+    error_cases! { read;
+        header_garbage: b"LASF and nothing else" => File, "LAS header";
+        points_cut_off: { let b = las_bytes("las"); b[..b.len() - 25].to_vec() } => File, "of 10";
+        laz_chunk_count_too_large: {
+            let mut b = las_bytes("laz");
+            let at = chunk_count_at(&b);
+            b[at..at + 4].copy_from_slice(&0xffff_fff0u32.to_le_bytes());
+            b
+        } => Byte(chunk_count_at(&las_bytes("laz")) as u64), "corrupt LAZ chunk table: 4294967280 chunks declared";
+        laz_data_corrupt: {
+            let mut b = las_bytes("laz");
+            let start = u32::from_le_bytes(b[96..100].try_into().unwrap()) as usize;
+            // The chunk table offset, pointed at the file's end.
+            let end = b.len() as i64;
+            b[start..start + 8].copy_from_slice(&end.to_le_bytes());
+            b
+        } => File, "LAS";
     }
 }

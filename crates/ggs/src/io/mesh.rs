@@ -292,3 +292,39 @@ mod tests {
         assert!(e.contains("line 5") && e.contains("'q'"), "{e}");
     }
 }
+
+/// One unit test per error path.
+#[cfg(test)]
+mod error_paths {
+    use super::*;
+    use crate::error::Location::{Byte, File, Line};
+
+    fn obj(path: &Path, b: &[u8]) -> Result<Mesh> {
+        parse_obj(path, b)
+    }
+
+    fn stl(path: &Path, b: &[u8]) -> Result<Mesh> {
+        parse_stl(path, b)
+    }
+
+    error_cases! { obj;
+        obj_not_utf8: b"v 0 0 0\nv \xff\n" => Byte(10), "not UTF-8";
+        obj_vertex_missing_z: b"v 0 0 0\nv 1 2\n" => Line(2), "missing";
+        obj_vertex_not_a_number: b"v 0 0 zero\n" => Line(1), "'zero' is not a number";
+        obj_face_not_an_index: b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 c\n" => Line(4), "face reference 'c' is not an index";
+        obj_face_index_zero: b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 1 2\n" => Line(4), "face index 0 is out of range";
+        obj_face_index_ahead: b"v 0 0 0\nv 1 0 0\nf 1 2 3\nv 0 1 0\n" => Line(3), "face index 3 is out of range: 2 vertices so far";
+        obj_face_too_small: b"v 0 0 0\nv 1 0 0\nf 1 2\n" => Line(3), "at least 3 vertices, found 2";
+    }
+
+    error_cases! { stl;
+        ascii_vertex_not_a_number: b"solid s\nfacet normal 0 0 1\nouter loop\nvertex 0 0 x\n" => Line(4), "vertex z: 'x' is not a number";
+        ascii_partial_triangle: b"solid s\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nendloop\nendfacet\nendsolid\n" => File, "2 vertices: not a whole number of triangles";
+        binary_no_header: [0u8; 50] => Byte(50), "80-byte header and a triangle count";
+        binary_truncated: {
+            let mut b = vec![0u8; 84 + 60];
+            b[80] = 2;
+            b
+        } => Byte(144), "truncated: 2 triangles need 184 bytes, found 144";
+    }
+}

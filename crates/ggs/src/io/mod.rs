@@ -4,6 +4,43 @@
 //! [`Format`] skips the extension. Every reader returns a typed [`GgsError`] that names the
 //! file and the line or byte offset of the problem.
 
+/// `error_cases! { read_fn; name: input => Location, "expected text"; … }`: one unit test
+/// per error path of a parser. `read_fn(path, &[u8])` must fail on `input` at that location
+/// (a [`crate::Location`]), with a message that names the file and contains the text.
+#[cfg(test)]
+macro_rules! error_cases {
+    ($read:expr; $($name:ident: $input:expr => $loc:expr, $want:expr;)+) => {
+        $(
+            #[test]
+            fn $name() {
+                let path = std::path::Path::new("bad.input");
+                let input = $input;
+                let bytes: &[u8] = AsRef::<[u8]>::as_ref(&input);
+                #[allow(clippy::redundant_closure_call)]
+                let r = ($read)(path, bytes);
+                $crate::io::check_error(r, $loc, $want);
+            }
+        )+
+    };
+}
+
+/// The assertion behind `error_cases!`.
+#[cfg(test)]
+pub(crate) fn check_error<T: std::fmt::Debug>(
+    r: Result<T>,
+    loc: crate::error::Location,
+    want: &str,
+) {
+    let e = r.expect_err("expected an error");
+    let s = e.to_string();
+    assert!(
+        s.contains("bad.input"),
+        "the message does not name the file: {s}"
+    );
+    assert!(s.contains(want), "expected '{want}' in: {s}");
+    assert_eq!(e.location(), Some(loc), "{s}");
+}
+
 pub mod e57;
 pub mod kitti;
 pub mod las;

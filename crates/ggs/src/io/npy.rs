@@ -127,6 +127,12 @@ pub fn write_npy_3d(path: &Path, n: usize, data: &[f64]) -> Result<()> {
 }
 
 fn write_npy_shape(path: &Path, shape: &str, data: &[f64]) -> Result<()> {
+    super::write_atomic(path, &npy_f64_bytes(shape, data))
+}
+
+/// The bytes of a float64 `.npy` file (format 1.0, C order) of shape `shape` (Python tuple
+/// syntax, e.g. `(5, 3)`).
+pub fn npy_f64_bytes(shape: &str, data: &[f64]) -> Vec<u8> {
     let mut header = format!("{{'descr': '<f8', 'fortran_order': False, 'shape': {shape}, }}");
     // Pad so that magic + version + length + header + '\n' is a multiple of 64.
     let total = 10 + header.len() + 1;
@@ -139,7 +145,7 @@ fn write_npy_shape(path: &Path, shape: &str, data: &[f64]) -> Result<()> {
     for v in data {
         out.extend_from_slice(&v.to_le_bytes());
     }
-    super::write_atomic(path, &out)
+    out
 }
 
 #[derive(Clone, Copy)]
@@ -313,5 +319,41 @@ mod tests {
         assert_eq!(a.shape, vec![2, 3]);
         assert_eq!(a.data, vec![1.0, 2.0, 3.0, 4.0, 5.0, 6.5]);
         std::fs::remove_dir_all(&dir).unwrap();
+    }
+}
+
+/// One unit test per error path.
+#[cfg(test)]
+mod error_paths {
+    use super::*;
+    use crate::error::Location::{Byte, File};
+
+    /// A version-1 file with this header text and body.
+    fn npy(header: &str, body: &[u8]) -> Vec<u8> {
+        let mut b = b"\x93NUMPY\x01\x00".to_vec();
+        b.extend((header.len() as u16).to_le_bytes());
+        b.extend(header.as_bytes());
+        b.extend(body);
+        b
+    }
+
+    fn points(path: &Path, b: &[u8]) -> Result<Vec<crate::cloud::Point>> {
+        points_of(path, &parse_npy(path, b)?)
+    }
+
+    error_cases! { points;
+        no_magic: b"\x93NUMPX\x01\x00\x00\x00" => Byte(0), "magic";
+        v2_length_truncated: b"\x93NUMPY\x02\x00\x10\x00" => Byte(8), "truncated header length";
+        unknown_version: b"\x93NUMPY\x07\x00\x00\x00" => Byte(6), "unsupported .npy format version 7";
+        header_truncated: npy("{'descr': '<f8'", b"")[..20].to_vec() => Byte(10), "truncated header";
+        header_not_text: { let mut b = npy("x", b""); b[10] = 0xff; b } => Byte(10), "not text";
+        no_descr: npy("{'shape': (1, 3), }", b"") => Byte(10), "no 'descr'";
+        no_shape: npy("{'descr': '<f8', }", b"") => Byte(10), "no 'shape'";
+        bad_shape: npy("{'descr': '<f8', 'shape': (1, -3), }", b"") => Byte(10), "bad shape";
+        unsupported_dtype: npy("{'descr': '<c16', 'shape': (1, 3), }", b"") => Byte(10), "unsupported dtype '<c16'";
+        element_count_overflows: npy("{'descr': '<f8', 'shape': (4294967296, 4294967296, 2), }", b"") => Byte(10), "shape too large";
+        byte_count_overflows: npy("{'descr': '<f8', 'shape': (4611686018427387904,), }", b"") => Byte(10), "shape too large";
+        data_truncated: npy("{'descr': '<f8', 'shape': (1, 3), }", &[0u8; 20]) => Byte(65), "needs 24 bytes, found 20";
+        not_a_cloud: npy("{'descr': '<f8', 'shape': (3,), }", &[0u8; 24]) => File, "shape [N, 3]";
     }
 }

@@ -100,22 +100,15 @@ pub fn read_npz_points<R: Read + Seek>(path: &Path, r: R, key: Option<&str>) -> 
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
     use std::io::{Cursor, Write};
 
-    fn npy_bytes(shape: (usize, usize), data: &[f64]) -> Vec<u8> {
-        let dir =
-            std::env::temp_dir().join(format!("ggs-npz-a-{}-{}", std::process::id(), data.len()));
-        std::fs::create_dir_all(&dir).unwrap();
-        let p = dir.join("a.npy");
-        npy::write_npy_f64(&p, shape.0, shape.1, data).unwrap();
-        let b = std::fs::read(&p).unwrap();
-        std::fs::remove_dir_all(&dir).unwrap();
-        b
+    pub(crate) fn npy_bytes(shape: (usize, usize), data: &[f64]) -> Vec<u8> {
+        npy::npy_f64_bytes(&format!("({}, {})", shape.0, shape.1), data)
     }
 
-    fn archive(entries: &[(&str, Vec<u8>)], deflate: bool) -> Vec<u8> {
+    pub(crate) fn archive(entries: &[(&str, Vec<u8>)], deflate: bool) -> Vec<u8> {
         let mut buf = Cursor::new(Vec::new());
         {
             let mut z = zip::ZipWriter::new(&mut buf);
@@ -191,5 +184,47 @@ mod tests {
         // A truncated archive.
         let z = archive(&[("x.npy", npy_bytes((1, 3), &[1.0, 2.0, 3.0]))], true);
         assert!(read_npz_points(p, Cursor::new(&z[..z.len() - 30]), None).is_err());
+    }
+}
+
+/// One unit test per error path.
+#[cfg(test)]
+mod error_paths {
+    use super::tests::{archive, npy_bytes};
+    use super::*;
+    use crate::error::Location::{Byte, File};
+    use std::io::Cursor;
+
+    fn read(path: &Path, b: &[u8]) -> Result<Vec<Point>> {
+        read_npz_points(path, Cursor::new(b), None)
+    }
+
+    /// A one-entry stored archive with the entry's bytes changed by `f` (local header at 0,
+    /// central header found by its signature).
+    fn patched(f: impl Fn(&mut Vec<u8>, usize)) -> Vec<u8> {
+        let mut z = archive(&[("x.npy", npy_bytes((1, 3), &[1.0, 2.0, 3.0]))], false);
+        let central = z.windows(4).position(|w| w == b"PK\x01\x02").unwrap();
+        f(&mut z, central);
+        z
+    }
+
+    error_cases! { read;
+        not_a_zip: b"PK\x03\x04 but no directory" => File, "NPZ archive directory";
+        unsupported_compression: patched(|z, c| {
+            // Method 99 (AES) in both headers.
+            z[8] = 99;
+            z[c + 10] = 99;
+        }) => File, "NPZ entry 'x.npy': compression method not supported";
+        local_header_broken: patched(|z, _| z[3] = 9) => File, "NPZ archive entry 0";
+        corrupt_deflate_stream: {
+            let mut z = archive(&[("x.npy", npy_bytes((50, 3), &[0.5; 150]))], true);
+            for b in &mut z[40..60] {
+                *b ^= 0x5a;
+            }
+            z
+        } => File, "NPZ entry 'x.npy'";
+        entry_not_npy: archive(&[("x.npy", b"\x93NUMPY\x01\x00\x05\x00{'sh".to_vec())], false) => Byte(10), "x.npy";
+        no_cloud_array: archive(&[("x.npy", npy_bytes((2, 2), &[0.0; 4]))], false) => File, "no array of shape [N, 3]";
+        empty_archive: archive(&[], false) => File, "holds: nothing";
     }
 }

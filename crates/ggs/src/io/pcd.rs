@@ -89,12 +89,8 @@ pub fn parse_pcd(path: &Path, bytes: &[u8]) -> Result<Vec<Point>> {
     match h.data_kind.as_str() {
         "ascii" => read_ascii(path, data, h.lines, fields, xyz, n),
         "binary" => read_binary(path, data, pos, fields, xyz, n),
-        "binary_compressed" => read_compressed(path, data, pos, fields, xyz, n),
-        other => Err(GgsError::at_line(
-            path,
-            h.lines,
-            format!("unknown DATA '{other}' (expected ascii, binary or binary_compressed)"),
-        )),
+        // parse_header accepts these three only.
+        _ => read_compressed(path, data, pos, fields, xyz, n),
     }
 }
 
@@ -354,9 +350,8 @@ fn read_binary(
     n: usize,
 ) -> Result<Vec<Point>> {
     let (field_off, stride) = row_layout(fields);
-    let need = stride
-        .checked_mul(n)
-        .ok_or_else(|| GgsError::in_file(path, "POINTS too large"))?;
+    // parse_header checked that n rows fit in a usize.
+    let need = stride * n;
     if data.len() < need {
         return Err(GgsError::at_byte(
             path,
@@ -626,5 +621,56 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("line 2"), "{e}");
+    }
+}
+
+/// One unit test per error path (streamed reader and in-memory parser).
+#[cfg(test)]
+mod error_paths {
+    use super::*;
+    use crate::error::Location::{Byte, File, Line};
+
+    /// A v0.7 header with fields x y z (F 4) and `n` points, then `data`.
+    fn pcd(kind: &str, n: usize, data: &[u8]) -> Vec<u8> {
+        let mut b = format!("VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH {n}\nHEIGHT 1\nPOINTS {n}\nDATA {kind}\n").into_bytes();
+        b.extend_from_slice(data);
+        b
+    }
+
+    fn header(lines: &str) -> Vec<u8> {
+        format!("{lines}DATA ascii\n").into_bytes()
+    }
+
+    fn streamed(path: &Path, b: &[u8]) -> Result<Vec<Point>> {
+        read_pcd(path, &mut std::io::Cursor::new(b), Some(b.len() as u64))
+    }
+
+    error_cases! { streamed;
+        no_data_line: b"VERSION 0.7\nFIELDS x y z\n" => Line(3), "DATA";
+        count_not_an_integer: header("FIELDS x y z\nSIZE 4 4 four\n") => Line(2), "'four' is not a non-negative integer (SIZE)";
+        unknown_type: header("FIELDS x y z\nSIZE 4 4 4\nTYPE F F D\n") => Line(3), "unknown TYPE 'D'";
+        unknown_keyword: header("FIELDS x y z\nCOLOUR 1\n") => Line(2), "unknown header keyword 'COLOUR'";
+        no_fields: header("POINTS 1\n") => File, "no FIELDS line";
+        field_lists_differ: header("FIELDS x y z\nSIZE 4 4\nTYPE F F F\nPOINTS 1\n") => File, "FIELDS has 3 entries but SIZE 2";
+        unsupported_size: header("FIELDS x y z\nSIZE 4 4 2\nTYPE F F F\nPOINTS 1\n") => File, "field 'z': unsupported TYPE F with SIZE 2";
+        zero_count: header("FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 0 1\nPOINTS 1\n") => File, "field 'y': COUNT 0";
+        width_times_height_overflows: header("FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH 18446744073709551615\nHEIGHT 2\n") => File, "overflows";
+        no_point_count: header("FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\n") => File, "neither POINTS nor WIDTH";
+        rows_overflow: header("FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nPOINTS 18446744073709551615\n") => File, "more bytes than a file can hold";
+        no_z_field: header("FIELDS x y w\nSIZE 4 4 4\nTYPE F F F\nPOINTS 1\n") => File, "no field 'z'";
+        unknown_data: pcd("packed", 1, b"") => Line(9), "unknown DATA 'packed'";
+        ascii_not_text: pcd("ascii", 1, &[0xff, 0xfe, b'\n']) => Line(10), "not valid text";
+        ascii_short_row: pcd("ascii", 1, b"1 2\n") => Line(10), "expected 3 values, found 2";
+        ascii_not_a_number: pcd("ascii", 1, b"1 2 x3\n") => Line(10), "'x3' is not a number";
+        ascii_truncated: pcd("ascii", 3, b"1 2 3\n") => File, "declares 3 points, the file holds 1";
+        binary_truncated: pcd("binary", 2, &[0u8; 20]) => Byte(117), "record 1 (at byte 109) runs past the end";
+        compressed_no_size_header: pcd("binary_compressed", 1, &[1, 2, 3]) => Byte(108), "8-byte size header";
+        compressed_block_truncated: pcd("binary_compressed", 1, &[9, 0, 0, 0, 12, 0, 0, 0, 1]) => Byte(116), "compressed block of 9 bytes, 1 present";
+        compressed_corrupt_lzf: pcd("binary_compressed", 1, &[2, 0, 0, 0, 12, 0, 0, 0, 0x20, 5]) => Byte(116), "corrupt LZF data: back-reference before the start";
+        compressed_too_short: pcd("binary_compressed", 1, &[2, 0, 0, 0, 1, 0, 0, 0, 0, 7]) => File, "decompressed data holds 1 bytes, 1 points need 12";
+    }
+
+    error_cases! { parse_pcd;
+        whole_binary_truncated: pcd("binary", 2, &[0u8; 20]) => Byte(117), "need 24 bytes of data, found 20";
     }
 }

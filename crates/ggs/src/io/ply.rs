@@ -4,7 +4,7 @@
 
 use super::{stream, write_atomic};
 use crate::cloud::Point;
-use crate::error::{GgsError, Result};
+use crate::error::{GgsError, Location, Result};
 use std::io::BufRead;
 use std::path::Path;
 
@@ -218,7 +218,7 @@ fn read_ply_chunked<R: BufRead>(
     chunk_bytes: usize,
 ) -> Result<Vec<Point>> {
     let mut header = stream::read_header(path, r, MAX_HEADER_BYTES, "'end_header'", |l| {
-        l == "end_header"
+        l.split_whitespace().next() == Some("end_header")
     })?;
     let h = parse_header(path, &header)?;
     let vi = vertex_element(path, &h)?;
@@ -343,11 +343,12 @@ struct FaceSink {
 }
 
 impl FaceSink {
-    fn push_index(&mut self, path: &Path, v: f64, at: &str) -> Result<()> {
+    fn push_index(&mut self, path: &Path, v: f64, at: Location) -> Result<()> {
         if !(v >= 0.0 && v < u32::MAX as f64 && v.fract() == 0.0) {
-            return Err(GgsError::in_file(
+            return Err(GgsError::at(
                 path,
-                format!("{at}: face vertex index {v} is not a valid index"),
+                at,
+                format!("face vertex index {v} is not a valid index (expected an integer ≥ 0)"),
             ));
         }
         self.polygon.push(v as u32);
@@ -473,7 +474,7 @@ fn read_ascii(
                             Some(f) => {
                                 for _ in 0..(n.max(0.0) as usize) {
                                     let v = next(name)?;
-                                    f.push_index(path, v, &format!("line {line_no}"))?;
+                                    f.push_index(path, v, Location::Line(line_no))?;
                                 }
                                 f.end_polygon();
                             }
@@ -581,7 +582,7 @@ fn read_binary(
                         let start = pos + s;
                         pos = start + n as usize * it.size();
                         if pos > bytes.len() {
-                            return Err(truncated(pos, el, row));
+                            return Err(truncated(start, el, row));
                         }
                         if let Some(f) = faces
                             .as_mut()
@@ -590,7 +591,7 @@ fn read_binary(
                             for k in 0..n as usize {
                                 let at = start + k * it.size();
                                 let v = it.decode(&bytes[at..at + it.size()], little);
-                                f.push_index(path, v, &format!("byte {at}"))?;
+                                f.push_index(path, v, Location::Byte(at as u64))?;
                             }
                             f.end_polygon();
                         }
@@ -842,5 +843,71 @@ mod tests {
         let bad = ascii.replace("7 3 0 1 4", "7 3 0 -1 4");
         let e = parse_ply_mesh(p, bad.as_bytes()).unwrap_err().to_string();
         assert!(e.contains("line 18") && e.contains("-1"), "{e}");
+    }
+}
+
+/// One unit test per error path (streamed reader, in-memory parser and mesh reader).
+#[cfg(test)]
+mod error_paths {
+    use super::*;
+    use crate::error::Location::{Byte, File, Line};
+
+    const XYZ: &str = "property float x\nproperty float y\nproperty float z\n";
+
+    fn ascii(body_header: &str, data: &str) -> Vec<u8> {
+        format!("ply\nformat ascii 1.0\n{body_header}end_header\n{data}").into_bytes()
+    }
+
+    fn binary(body_header: &str, data: &[u8]) -> Vec<u8> {
+        let mut b =
+            format!("ply\nformat binary_little_endian 1.0\n{body_header}end_header\n").into_bytes();
+        b.extend_from_slice(data);
+        b
+    }
+
+    fn streamed(path: &Path, b: &[u8]) -> Result<Vec<Point>> {
+        read_ply_chunked(path, &mut std::io::Cursor::new(b), Some(b.len() as u64), 16)
+    }
+
+    fn mesh(path: &Path, b: &[u8]) -> Result<crate::io::mesh::Mesh> {
+        parse_ply_mesh(path, b)
+    }
+
+    error_cases! { streamed;
+        header_without_end: b"ply\nformat ascii 1.0\nelement vertex 1\n" => Line(4), "end_header";
+        not_ply: b"plx\nformat ascii 1.0\nend_header\n" => Line(1), "expected 'ply'";
+        unknown_encoding: b"ply\nformat binary 1.0\nend_header\n" => Line(2), "unknown format";
+        element_without_count: ascii("element vertex\n", "") => Line(3), "element NAME COUNT";
+        property_before_element: ascii("property float x\n", "") => Line(3), "before any 'element'";
+        list_without_types: ascii("element face 1\nproperty list uchar\n", "") => Line(4), "property list COUNT_TYPE";
+        unknown_property_type: ascii("element vertex 1\nproperty float128 x\n", "") => Line(4), "unknown property type 'float128'";
+        property_without_name: ascii("element vertex 1\nproperty float\n", "") => Line(4), "without a name";
+        no_format_line: b"ply\nelement vertex 0\nend_header\n" => File, "no 'format' line";
+        no_vertex_element: ascii("element face 0\n", "") => File, "no 'vertex' element";
+        no_z: ascii("element vertex 1\nproperty float x\nproperty float y\n", "1 2\n") => File, "no scalar property 'z'";
+        ascii_truncated: ascii(&format!("element vertex 3\n{XYZ}"), "1 2 3\n") => File, "declares 3 rows, the file ends after 1";
+        ascii_not_text: [ascii(&format!("element vertex 1\n{XYZ}"), ""), vec![0xff, 0xfe, b'\n']].concat() => Line(8), "not valid text";
+        ascii_missing_value: ascii(&format!("element vertex 1\n{XYZ}"), "1 2\n") => Line(8), "missing value for 'z'";
+        ascii_not_a_number: ascii(&format!("element vertex 1\n{XYZ}"), "1 two 3\n") => Line(8), "'two' is not a number ('y')";
+        binary_truncated_vertex: binary(&format!("element vertex 2\n{XYZ}"), &[0u8; 20]) => Byte(135), "record 1 (at byte 127) runs past the end";
+        binary_skipped_element_truncated: binary(&format!("element camera 4\nproperty double t\nelement vertex 1\n{XYZ}"), &[0u8; 9]) => Byte(159), "element 'camera' needs 32 bytes, the file ends after 9";
+        binary_skipped_element_overflows: binary(&format!("element camera 18446744073709551615\nproperty double t\nelement vertex 1\n{XYZ}"), &[]) => Byte(169), "overflow";
+    }
+
+    error_cases! { parse_ply;
+        whole_binary_truncated: binary(&format!("element vertex 2\n{XYZ}"), &[0u8; 20]) => Byte(135), "truncated: element 'vertex' row 1 of 2";
+        whole_list_length_negative: binary(&format!("element vertex 1\n{XYZ}property list char int idx\n"), &[0u8, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0xff]) => Byte(154), "invalid list length -1";
+        whole_list_past_end: binary(&format!("element vertex 1\n{XYZ}property list uchar int idx\n"), &[0u8, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 3, 1, 0, 0, 0]) => Byte(156), "truncated: element 'vertex' row 0";
+    }
+
+    error_cases! { mesh;
+        face_index_negative: ascii(&format!("element vertex 3\n{XYZ}element face 1\nproperty list uchar int vertex_indices\n"), "0 0 0\n1 0 0\n0 1 0\n3 0 -1 2\n") => Line(13), "face vertex index -1";
+        face_index_past_vertices: ascii(&format!("element vertex 3\n{XYZ}element face 1\nproperty list uchar int vertex_indices\n"), "0 0 0\n1 0 0\n0 1 0\n3 0 1 7\n") => File, "only 3 vertices";
+        binary_face_index_fraction: {
+            let mut d = vec![0u8; 36];
+            d.push(3);
+            for v in [0.0f32, 1.0, 1.5] { d.extend(v.to_le_bytes()); }
+            binary(&format!("element vertex 3\n{XYZ}element face 1\nproperty list uchar float vertex_indices\n"), &d)
+        } => Byte(216), "face vertex index 1.5";
     }
 }

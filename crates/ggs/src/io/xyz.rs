@@ -15,7 +15,6 @@ fn split(line: &str) -> impl Iterator<Item = &str> {
         .filter(|t| !t.is_empty())
 }
 
-/// Read points from delimited text.
 /// Write points as text, one `x y z` line each, in the shortest form that reads back to the
 /// same f64 values, atomically.
 pub fn write_xyz(path: &Path, points: &[Point]) -> Result<()> {
@@ -27,6 +26,7 @@ pub fn write_xyz(path: &Path, points: &[Point]) -> Result<()> {
     super::write_atomic(path, out.as_bytes())
 }
 
+/// Read points from delimited text.
 pub fn parse_xyz(path: &Path, bytes: &[u8]) -> Result<Vec<Point>> {
     let text = std::str::from_utf8(bytes)
         .map_err(|e| GgsError::at_byte(path, e.valid_up_to() as u64, "not valid UTF-8 text"))?;
@@ -131,5 +131,20 @@ mod tests {
         assert!(e.contains("line 2") && e.contains("'zz'"), "{e}");
         let e = parse_xyz(Path::new(P), b"a b\n").unwrap_err().to_string();
         assert!(e.contains("line 1"), "{e}");
+    }
+}
+
+/// One unit test per error path.
+#[cfg(test)]
+mod error_paths {
+    use super::*;
+    use crate::error::Location::{Byte, Line};
+
+    error_cases! { parse_xyz;
+        not_utf8: b"1 2 3\n4 5 \xff\n" => Byte(10), "not valid UTF-8";
+        header_too_short: b"# comment\nx y\n1 2 3\n" => Line(2), "expected at least 3 values (x y z), found 2";
+        row_too_short: b"1 2 3\n4 5\n" => Line(2), "expected at least 3 values, found 2";
+        named_column_missing: b"a,x,y,z\n1,2,3,4\n5,6,7\n" => Line(3), "expected at least 4 values, found 3";
+        not_a_number: b"1 2 3\n4 five 6\n" => Line(2), "'five' is not a number";
     }
 }

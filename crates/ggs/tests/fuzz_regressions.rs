@@ -1,0 +1,78 @@
+//! Inputs that crashed a fuzz target (see fuzz/README.md), kept so that the fixes stay
+//! fixed: `tests/data/fuzz/<target>/<name>` is read as the target's format, and each must
+//! give an error (or points), never a panic or an abort.
+
+use ggs::io::{parse_bytes, Format, ReadOptions};
+use std::path::{Path, PathBuf};
+
+fn format_of(target: &str) -> Format {
+    match target {
+        "text" => Format::Text,
+        "kitti" => Format::KittiBin,
+        t => Format::from_name(t).unwrap_or_else(|| panic!("unknown fuzz target folder {t}")),
+    }
+}
+
+fn cases() -> Vec<(String, PathBuf)> {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tests/data/fuzz");
+    let mut out = Vec::new();
+    for t in std::fs::read_dir(&root).expect("tests/data/fuzz") {
+        let t = t.unwrap().path();
+        for f in std::fs::read_dir(&t).unwrap() {
+            out.push((
+                t.file_name().unwrap().to_string_lossy().to_string(),
+                f.unwrap().path(),
+            ));
+        }
+    }
+    out.sort();
+    out
+}
+
+#[test]
+fn every_crash_input_is_a_clean_result() {
+    let cases = cases();
+    assert!(!cases.is_empty());
+    for (target, file) in cases {
+        let bytes = std::fs::read(&file).unwrap();
+        let opts = ReadOptions {
+            format: Some(format_of(&target)),
+            mesh_samples: None,
+            ..Default::default()
+        };
+        let r = parse_bytes(&file, &bytes, &opts);
+        if let Err(e) = &r {
+            assert!(e.to_string().contains(&*file.to_string_lossy()), "{e}");
+        }
+        // Meshes are also sampled by the fuzz targets.
+        if matches!(target.as_str(), "obj" | "stl" | "ply") {
+            let sampled = ReadOptions {
+                mesh_samples: Some(32),
+                ..opts
+            };
+            let _ = parse_bytes(&file, &bytes, &sampled);
+        }
+    }
+}
+
+#[test]
+fn corrupt_laz_chunk_count_is_refused_before_allocating() {
+    let file =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tests/data/fuzz/las/laz-chunk-count-oom");
+    let bytes = std::fs::read(&file).unwrap();
+    let e = parse_bytes(
+        &file,
+        &bytes,
+        &ReadOptions {
+            format: Some(Format::Las),
+            ..Default::default()
+        },
+    )
+    .unwrap_err();
+    let s = e.to_string();
+    assert!(
+        s.contains("chunk table") && s.contains("chunks declared"),
+        "{s}"
+    );
+    assert!(matches!(e.location(), Some(ggs::Location::Byte(_))));
+}

@@ -1,0 +1,12 @@
+#![no_main]
+//! Fuzz the kitti reader.
+
+#[path = "common.rs"]
+mod common;
+
+use ggs::io::{Format, ReadOptions};
+use libfuzzer_sys::fuzz_target;
+
+fuzz_target!(|data: &[u8]| {
+    common::parse(Format::KittiBin, data, ReadOptions::default());
+});

@@ -1,0 +1,12 @@
+#![no_main]
+//! Fuzz the npy reader.
+
+#[path = "common.rs"]
+mod common;
+
+use ggs::io::{Format, ReadOptions};
+use libfuzzer_sys::fuzz_target;
+
+fuzz_target!(|data: &[u8]| {
+    common::parse(Format::Npy, data, ReadOptions::default());
+});
