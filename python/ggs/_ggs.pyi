@@ -95,8 +95,18 @@ def refine(
 ) -> Result:
     """Refine an initial 4×4 transform by ICP (``gicp``, ``p2plane`` or ``p2p``)."""
 
-def read_point_cloud(path: StrPath, format: Optional[str] = None) -> npt.NDArray[np.float64]:
-    """Read any format ggs reads (PLY, PCD, XYZ/TXT/CSV/PTS, NPY, KITTI .bin, LAS/LAZ, OBJ, STL)."""
+def read_point_cloud(
+    path: StrPath,
+    format: Optional[str] = None,
+    *,
+    scan: Optional[int] = None,
+    apply_pose: bool = True,
+    array: Optional[str] = None,
+    sample_mesh: Optional[int] = None,
+) -> npt.NDArray[np.float64]:
+    """Read any format ggs reads (PLY, PCD, XYZ/TXT/CSV/PTS, NPY/NPZ, KITTI .bin, LAS/LAZ,
+    E57, OBJ, STL). E57: `scan` picks one scan (default all, posed unless apply_pose=False);
+    NPZ: `array` names the array; meshes: `sample_mesh=N` samples N points on the faces."""
 
 def write_point_cloud(path: StrPath, points: Points, format: Optional[str] = None) -> None:
     """Write an (N, 3) array atomically; the format follows the extension unless given."""

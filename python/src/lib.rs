@@ -466,30 +466,46 @@ fn parse_format(format: Option<&str>) -> PyResult<Option<Format>> {
         .map(|f| {
             Format::from_name(f).ok_or_else(|| {
                 PyValueError::new_err(format!(
-                    "unknown format '{f}' (ply, pcd, xyz, txt, csv, pts, npy, bin, las, laz, obj, stl)"
+                    "unknown format '{f}' ({})",
+                    io::FORMAT_NAMES
                 ))
             })
         })
         .transpose()
 }
 
-/// Read a point cloud (any format ggs reads) as an (N, 3) float64 array.
+/// Read a point cloud (any format ggs reads) as an (N, 3) float64 array. E57: `scan` picks
+/// one scan (default: all, each moved by its pose unless `apply_pose=False`); NPZ: `array`
+/// names the array; meshes: `sample_mesh=N` samples N points on the faces.
 #[pyfunction]
-#[pyo3(signature = (path, format=None))]
+#[pyo3(signature = (path, format=None, *, scan=None, apply_pose=true, array=None, sample_mesh=None))]
+#[allow(clippy::too_many_arguments)]
 fn read_point_cloud<'py>(
     py: Python<'py>,
     path: PathBuf,
     format: Option<&str>,
+    scan: Option<usize>,
+    apply_pose: bool,
+    array: Option<String>,
+    sample_mesh: Option<usize>,
 ) -> PyResult<Bound<'py, PyAny>> {
-    let fmt = parse_format(format)?;
+    if sample_mesh == Some(0) {
+        return Err(PyValueError::new_err("sample_mesh: 0 points asked for (at least 1)"));
+    }
+    let opts = io::ReadOptions {
+        format: parse_format(format)?,
+        e57: io::e57::E57Options { scan, apply_pose },
+        npz_array: array,
+        mesh_samples: sample_mesh,
+    };
     let loaded = py
-        .detach(|| io::read_cloud(&path, fmt))
+        .detach(|| io::read_cloud_with(&path, &opts))
         .map_err(to_py_err)?;
     points_array(py, &loaded.cloud.points)
 }
 
 /// Write an (N, 3) array to a point-cloud file, atomically; the format follows the
-/// extension (ply, pcd, xyz/txt/pts/csv, npy, bin, las, laz) unless given.
+/// extension (ply, pcd, xyz/txt/pts/csv, npy, bin, las, laz, e57) unless given.
 #[pyfunction]
 #[pyo3(signature = (path, points, format=None))]
 fn write_point_cloud(

@@ -34,14 +34,14 @@ def test_read_gives_float64_n_by_3():
     assert pts.shape[0] == 397
 
 
-@pytest.mark.parametrize("ext", ["ply", "pcd", "npy", "xyz", "las"])
+@pytest.mark.parametrize("ext", ["ply", "pcd", "npy", "xyz", "las", "laz", "e57"])
 def test_write_read_round_trip(tmp_path, ext):
     rng = np.random.default_rng(1)
     pts = rng.uniform(-2, 2, size=(500, 3)).round(3)
     path = tmp_path / f"cloud.{ext}"
     ggs.write_point_cloud(path, pts)
     back = ggs.read_point_cloud(path)
-    if ext == "las":  # stored as integers with a power-of-ten scale
+    if ext in ("las", "laz"):  # stored as integers with a power-of-ten scale
         np.testing.assert_allclose(back, pts, atol=1e-9)
     else:
         np.testing.assert_array_equal(back, pts)
@@ -49,6 +49,24 @@ def test_write_read_round_trip(tmp_path, ext):
     p32 = pts.astype(np.float32)
     ggs.write_point_cloud(tmp_path / "f32.ply", p32)
     np.testing.assert_array_equal(ggs.read_point_cloud(tmp_path / "f32.ply"), p32.astype(np.float64))
+
+
+def test_read_npz_e57_and_sampled_meshes(tmp_path):
+    pts = ggs.read_point_cloud(DATA / "bun0.pcd")
+    np.savez_compressed(tmp_path / "c.npz", labels=np.zeros(5), points=pts)
+    np.testing.assert_array_equal(ggs.read_point_cloud(tmp_path / "c.npz"), pts)
+    np.testing.assert_array_equal(ggs.read_point_cloud(tmp_path / "c.npz", array="points"), pts)
+    with pytest.raises(ValueError, match="labels"):
+        ggs.read_point_cloud(tmp_path / "c.npz", array="labels")
+    ggs.write_point_cloud(tmp_path / "c.e57", pts)
+    np.testing.assert_array_equal(ggs.read_point_cloud(tmp_path / "c.e57", scan=0), pts)
+    with pytest.raises(ValueError, match="scan 4"):
+        ggs.read_point_cloud(tmp_path / "c.e57", scan=4)
+    woman = DATA / "human_woman.obj"
+    assert ggs.read_point_cloud(woman).shape == (6890, 3)
+    sampled = ggs.read_point_cloud(woman, sample_mesh=2000)
+    assert sampled.shape == (2000, 3)
+    np.testing.assert_array_equal(sampled, ggs.read_point_cloud(woman, sample_mesh=2000))
 
 
 @pytest.mark.parametrize(

@@ -367,7 +367,7 @@ mod tests {
             [-3.0, 1.0 / 3.0, 0.0],
             [6e5, 4.2e6, -12.25],
         ];
-        for ext in ["ply", "pcd", "xyz", "txt", "pts", "csv", "npy"] {
+        for ext in ["ply", "pcd", "xyz", "txt", "pts", "csv", "npy", "e57"] {
             let p = dir.join(format!("c.{ext}"));
             write_cloud(&p, &pts, None).unwrap();
             let back = read_cloud(&p, None).unwrap().cloud.points;
@@ -380,6 +380,19 @@ mod tests {
         for (a, b) in back.iter().zip(&pts) {
             for k in 0..3 {
                 assert_eq!(a[k], b[k] as f32 as f64);
+            }
+        }
+        // LAS/LAZ store integers with a power-of-ten scale spanning the box in 2^31 steps.
+        for ext in ["las", "laz"] {
+            let p = dir.join(format!("c.{ext}"));
+            write_cloud(&p, &pts, None).unwrap();
+            let back = read_cloud(&p, None).unwrap().cloud.points;
+            let b = crate::cloud::bounds(&pts).unwrap();
+            for (p, q) in back.iter().zip(&pts) {
+                for k in 0..3 {
+                    let tol = 0.5 * las::las_scale(b.max[k] - b.min[k]) * (1.0 + 1e-12);
+                    assert!((p[k] - q[k]).abs() <= tol, "{ext}: {p:?} vs {q:?}");
+                }
             }
         }
         let e = write_cloud(&dir.join("c.weird"), &pts, None)

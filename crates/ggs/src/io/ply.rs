@@ -217,6 +217,13 @@ fn read_ply_chunked<R: BufRead>(
     file_len: Option<u64>,
     chunk_bytes: usize,
 ) -> Result<Vec<Point>> {
+    // Refuse a file that is not PLY at its first line, before looking for 'end_header'.
+    let head = r.fill_buf().map_err(|e| GgsError::io(path, e))?;
+    let first = head.split(|&b| b == b'\n').next().unwrap_or(&[]);
+    let whole_line = first.len() < head.len() || head.len() >= 64;
+    if whole_line && String::from_utf8_lossy(first).split_whitespace().next() != Some("ply") {
+        return Err(GgsError::at_line(path, 1, "expected 'ply' magic line"));
+    }
     let mut header = stream::read_header(path, r, MAX_HEADER_BYTES, "'end_header'", |l| {
         l.split_whitespace().next() == Some("end_header")
     })?;
