@@ -465,10 +465,7 @@ fn parse_format(format: Option<&str>) -> PyResult<Option<Format>> {
     format
         .map(|f| {
             Format::from_name(f).ok_or_else(|| {
-                PyValueError::new_err(format!(
-                    "unknown format '{f}' ({})",
-                    io::FORMAT_NAMES
-                ))
+                PyValueError::new_err(format!("unknown format '{f}' ({})", io::FORMAT_NAMES))
             })
         })
         .transpose()
@@ -490,7 +487,9 @@ fn read_point_cloud<'py>(
     sample_mesh: Option<usize>,
 ) -> PyResult<Bound<'py, PyAny>> {
     if sample_mesh == Some(0) {
-        return Err(PyValueError::new_err("sample_mesh: 0 points asked for (at least 1)"));
+        return Err(PyValueError::new_err(
+            "sample_mesh: 0 points asked for (at least 1)",
+        ));
     }
     let opts = io::ReadOptions {
         format: parse_format(format)?,

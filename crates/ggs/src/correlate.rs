@@ -54,7 +54,7 @@ pub fn is_3_smooth(mut n: usize) -> bool {
         return false;
     }
     for p in [2, 3] {
-        while n % p == 0 {
+        while n.is_multiple_of(p) {
             n /= p;
         }
     }
@@ -67,7 +67,7 @@ pub fn is_3_smooth(mut n: usize) -> bool {
 pub fn fast_len(min: usize, even: bool) -> usize {
     let mut n = min.max(1);
     loop {
-        if is_3_smooth(n) && (!even || n % 2 == 0) {
+        if is_3_smooth(n) && (!even || n.is_multiple_of(2)) {
             return n;
         }
         n += 1;

@@ -350,7 +350,7 @@ pub fn parse_gt_log(path: &Path, text: &str) -> Result<HashMap<(u32, u32), Rigid
         .map(|(k, l)| (k + 1, l.trim()))
         .filter(|(_, l)| !l.is_empty())
         .collect();
-    if lines.len() % 5 != 0 {
+    if !lines.len().is_multiple_of(5) {
         return Err(GgsError::in_file(
             path,
             format!(

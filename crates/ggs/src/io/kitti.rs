@@ -19,7 +19,7 @@ pub fn parse_kitti_bin(path: &Path, bytes: &[u8]) -> Result<Vec<Point>> {
 /// time (reflectance dropped).
 pub fn read_kitti_bin<R: Read>(path: &Path, r: &mut R, len: u64) -> Result<Vec<Point>> {
     let rec = RECORD as u64;
-    if len % rec != 0 {
+    if !len.is_multiple_of(rec) {
         return Err(GgsError::at_byte(
             path,
             len - len % rec,

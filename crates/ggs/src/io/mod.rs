@@ -154,7 +154,7 @@ pub struct ReadOptions {
 }
 
 /// Seed of mesh sampling on read (so a mesh read twice gives the same points).
-pub const MESH_SAMPLE_SEED: u64 = 0x6767_73;
+pub const MESH_SAMPLE_SEED: u64 = 0x0067_6773;
 
 /// A cloud read from a file, with what was dropped on the way.
 #[derive(Debug, Clone)]
