@@ -422,6 +422,35 @@ mod tests {
     }
 
     #[test]
+    fn magic_bytes_of_every_format_with_one() {
+        let cases: [(&[u8], Option<Format>); 10] = [
+            (b"ply\nformat ascii 1.0\n", Some(Format::Ply)),
+            (b"ply\r\nformat ascii 1.0\r\n", Some(Format::Ply)),
+            (b"\x93NUMPY\x01\x00", Some(Format::Npy)),
+            (b"PK\x03\x04\x14\x00", Some(Format::Npz)),
+            (b"LASF\x00\x00", Some(Format::Las)),
+            (b"ASTM-E57\x00\x00", Some(Format::E57)),
+            (b"# .PCD v0.7\nVERSION 0.7\n", Some(Format::Pcd)),
+            (b"solid part\n  facet normal 0 0 1\n", Some(Format::Stl)),
+            // A binary STL whose 80-byte header starts with "solid": not text after it.
+            (b"solid exported by a CAD tool\0\0\x10\xff facet", None),
+            (b"1.0 2.0 3.0\n", None),
+        ];
+        for (bytes, want) in cases {
+            assert_eq!(
+                Format::from_magic(bytes),
+                want,
+                "{:?}",
+                String::from_utf8_lossy(bytes)
+            );
+        }
+        // The extension decides for text, OBJ and KITTI; --format names every format.
+        for name in FORMAT_NAMES.split(", ") {
+            assert!(Format::from_name(name).is_some(), "{name}");
+        }
+    }
+
+    #[test]
     fn magic_beats_extension() {
         let d = tmpdir("magic");
         let p = d.join("cloud.txt");
