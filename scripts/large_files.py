@@ -106,10 +106,13 @@ def main():
     ap.add_argument("--dir", type=Path, default=Path("/tmp/ggs-large"))
     ap.add_argument("--runs", type=int, default=3)
     ap.add_argument("--only", help="only the files whose label contains this")
+    ap.add_argument("--generate-only", action="store_true", help="write the files, measure nothing")
     a = ap.parse_args()
     if not GGS.exists():
         sys.exit("build first: cargo build --release")
     files = write_files(a.dir, a.points)
+    if a.generate_only:
+        return
     out_mb = a.points * 24 / 1e6
     print(f"{a.points} points; the output cloud itself takes {out_mb:.0f} MB (24 bytes a point)")
     print(f"{'file':32} {'MB':>7} {'cold MB/s':>9} {'dd MB/s':>8} {'ggs MB/s':>9} {'cat MB/s':>9} {'peak RSS MB':>11} {'beside output':>13}")

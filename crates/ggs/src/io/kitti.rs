@@ -30,7 +30,6 @@ pub fn read_kitti_bin<R: Read>(path: &Path, r: &mut R, len: u64) -> Result<Vec<P
         ));
     }
     let f = |b: &[u8]| f32::from_le_bytes([b[0], b[1], b[2], b[3]]) as f64;
-    let mut out = Vec::with_capacity((len / rec) as usize);
     stream::read_records(
         path,
         r,
@@ -40,9 +39,8 @@ pub fn read_kitti_bin<R: Read>(path: &Path, r: &mut R, len: u64) -> Result<Vec<P
         "the file size",
         stream::CHUNK_BYTES,
         |r| [f(&r[0..4]), f(&r[4..8]), f(&r[8..12])],
-        &mut out,
-    )?;
-    Ok(out)
+        len / rec,
+    )
 }
 
 /// Write a KITTI `.bin` scan (reflectance 0) atomically; for tests and fixtures.

@@ -1,7 +1,7 @@
 //! PCD point clouds (PCL): `VERSION .5`/`0.6`/`0.7` headers, with or without `VIEWPOINT`;
 //! `DATA ascii`, `binary` and `binary_compressed` (LZF). Only fields `x`, `y`, `z` are read.
 
-use super::stream;
+use super::{ply, stream};
 use crate::cloud::Point;
 use crate::error::{GgsError, Result};
 use std::io::BufRead;
@@ -53,21 +53,26 @@ pub fn read_pcd<R: BufRead>(path: &Path, r: &mut R, file_len: Option<u64>) -> Re
     let room = file_len.map_or(1 << 20, |l| {
         l.saturating_sub(h.data_start as u64) / stride.max(1) as u64
     });
-    let mut out = Vec::with_capacity((h.n as u64).min(room) as usize);
     let fx: [(&Field, usize); 3] =
         std::array::from_fn(|d| (&h.fields[h.xyz[d]], field_off[h.xyz[d]]));
-    stream::read_records(
-        path,
-        r,
-        h.data_start as u64,
-        stride,
+    let (n, start, what, chunk) = (
         h.n as u64,
+        h.data_start as u64,
         "POINTS",
         stream::CHUNK_BYTES,
-        |rec| fx.map(|(f, o)| decode(f, &rec[o..])),
-        &mut out,
-    )?;
-    Ok(out)
+    );
+    let at = fx.map(|(_, o)| o);
+    // x y z as float32 or float64 (PCD data is little endian): no per-value type dispatch.
+    if fx.iter().all(|(f, _)| (f.kind, f.size) == (b'F', 4)) {
+        let f = move |rec: &[u8]| at.map(|o| ply::f32_le(&rec[o..o + 4]));
+        stream::read_records(path, r, start, stride, n, what, chunk, f, room)
+    } else if fx.iter().all(|(f, _)| (f.kind, f.size) == (b'F', 8)) {
+        let f = move |rec: &[u8]| at.map(|o| ply::f64_le(&rec[o..o + 8]));
+        stream::read_records(path, r, start, stride, n, what, chunk, f, room)
+    } else {
+        let f = |rec: &[u8]| fx.map(|(f, o)| decode(f, &rec[o..]));
+        stream::read_records(path, r, start, stride, n, what, chunk, f, room)
+    }
 }
 
 /// Byte offset of each field in a row, and the row size.

@@ -48,7 +48,7 @@ impl Scalar {
     }
 
     /// Decode one value from the first `self.size()` bytes of `b`.
-    #[inline]
+    #[inline(always)]
     fn decode(self, b: &[u8], little: bool) -> f64 {
         macro_rules! get {
             ($t:ty, $n:expr) => {{
@@ -279,19 +279,31 @@ fn read_ply_chunked<R: BufRead>(
     }
     let little = h.encoding == Encoding::BinaryLe;
     let room = file_len.map_or(1 << 20, |l| l.saturating_sub(pos) / stride.max(1) as u64);
-    let mut out = Vec::with_capacity((el.count as u64).min(room) as usize);
-    stream::read_records(
-        path,
-        r,
-        pos,
-        stride,
-        el.count as u64,
-        "element 'vertex'",
-        chunk_bytes,
-        |rec| offsets.map(|(o, t)| t.decode(&rec[o..], little)),
-        &mut out,
-    )?;
-    Ok(out)
+    let (n, what) = (el.count as u64, "element 'vertex'");
+    let at = offsets.map(|(o, _)| o);
+    // The common layouts get a decoder without a per-value type dispatch.
+    if little && offsets.iter().all(|&(_, t)| t == Scalar::F32) {
+        let f = move |rec: &[u8]| at.map(|o| f32_le(&rec[o..o + 4]));
+        stream::read_records(path, r, pos, stride, n, what, chunk_bytes, f, room)
+    } else if little && offsets.iter().all(|&(_, t)| t == Scalar::F64) {
+        let f = move |rec: &[u8]| at.map(|o| f64_le(&rec[o..o + 8]));
+        stream::read_records(path, r, pos, stride, n, what, chunk_bytes, f, room)
+    } else {
+        let f = |rec: &[u8]| offsets.map(|(o, t)| t.decode(&rec[o..], little));
+        stream::read_records(path, r, pos, stride, n, what, chunk_bytes, f, room)
+    }
+}
+
+/// A little-endian f32 from 4 bytes, as f64.
+#[inline(always)]
+pub(crate) fn f32_le(b: &[u8]) -> f64 {
+    f32::from_le_bytes([b[0], b[1], b[2], b[3]]) as f64
+}
+
+/// A little-endian f64 from 8 bytes.
+#[inline(always)]
+pub(crate) fn f64_le(b: &[u8]) -> f64 {
+    f64::from_le_bytes([b[0], b[1], b[2], b[3], b[4], b[5], b[6], b[7]])
 }
 
 /// Read the vertices of a PLY file held in memory.

@@ -23,9 +23,16 @@ pub fn read_full<R: Read>(r: &mut R, buf: &mut [u8]) -> std::io::Result<usize> {
     Ok(got)
 }
 
+/// Records decoded per parallel task.
+const TASK_RECORDS: usize = 1 << 14;
+
 /// Decode `count` records of `stride` bytes each from `r`, whose next byte is byte `start` of
-/// the file, appending `decode(record)` to `out`. `chunk_bytes` (≥ `stride`) bounds the
-/// buffer. A source that ends early is an error at the byte where it ended, naming `what`.
+/// the file, into points. `chunk_bytes` (≥ `stride`) bounds the read buffer; each chunk is
+/// decoded in parallel (rayon) straight into the output, which is allocated zeroed for
+/// `min(count, reserve)` points up front (`reserve`: how many records the file's size can
+/// hold, so an overstated count costs nothing), so its pages are first touched by the
+/// decoding threads. The result does not depend on the thread count. A source that ends
+/// early is an error at the byte where it ended, naming `what`.
 #[allow(clippy::too_many_arguments)]
 pub fn read_records<R: Read>(
     path: &Path,
@@ -35,15 +42,17 @@ pub fn read_records<R: Read>(
     count: u64,
     what: &str,
     chunk_bytes: usize,
-    mut decode: impl FnMut(&[u8]) -> Point,
-    out: &mut Vec<Point>,
-) -> Result<()> {
+    decode: impl Fn(&[u8]) -> Point + Sync,
+    reserve: u64,
+) -> Result<Vec<Point>> {
+    use rayon::prelude::*;
     if stride == 0 {
         return Err(GgsError::in_file(
             path,
             format!("{what}: records of 0 bytes"),
         ));
     }
+    let mut out = vec![[0.0f64; 3]; count.min(reserve) as usize];
     let per_chunk = (chunk_bytes / stride).max(1);
     let mut buf = vec![0u8; per_chunk * stride];
     let mut done = 0u64;
@@ -52,7 +61,18 @@ pub fn read_records<R: Read>(
         let want = k * stride;
         let got = read_full(r, &mut buf[..want]).map_err(|e| GgsError::io(path, e))?;
         let whole = got / stride;
-        out.extend(buf[..whole * stride].chunks_exact(stride).map(&mut decode));
+        let first = done as usize;
+        if out.len() < first + whole {
+            out.resize(first + whole, [0.0; 3]);
+        }
+        out[first..first + whole]
+            .par_chunks_mut(TASK_RECORDS)
+            .zip(buf[..whole * stride].par_chunks(TASK_RECORDS * stride))
+            .for_each(|(o, b)| {
+                for (p, rec) in o.iter_mut().zip(b.chunks_exact(stride)) {
+                    *p = decode(rec);
+                }
+            });
         if got < want {
             let at = start + (done + whole as u64) * stride as u64;
             return Err(GgsError::at_byte(
@@ -66,7 +86,8 @@ pub fn read_records<R: Read>(
         }
         done += k as u64;
     }
-    Ok(())
+    out.truncate(count as usize);
+    Ok(out)
 }
 
 /// Skip `len` bytes of `r` (at byte `start` of the file), or fail naming `what`.
@@ -143,28 +164,30 @@ mod tests {
     fn records_across_chunk_boundaries() {
         let bytes: Vec<u8> = (0..30u8).collect();
         for chunk in [1, 3, 4, 7, 100] {
-            let mut out = Vec::new();
-            read_records(
-                Path::new("f"),
-                &mut Cursor::new(&bytes),
-                0,
-                3,
-                10,
-                "x",
-                chunk,
-                decode,
-                &mut out,
-            )
-            .unwrap();
-            assert_eq!(out.len(), 10, "chunk {chunk}");
-            assert_eq!(out[9], [27.0, 28.0, 29.0]);
+            // A reserve below the count (the output grows) and above it.
+            for reserve in [2, 10, 1000] {
+                let out = read_records(
+                    Path::new("f"),
+                    &mut Cursor::new(&bytes),
+                    0,
+                    3,
+                    10,
+                    "x",
+                    chunk,
+                    decode,
+                    reserve,
+                )
+                .unwrap();
+                assert_eq!(out.len(), 10, "chunk {chunk}");
+                assert_eq!(out[9], [27.0, 28.0, 29.0]);
+                assert_eq!(out[4], [12.0, 13.0, 14.0]);
+            }
         }
     }
 
     #[test]
     fn truncated_records_name_the_byte() {
         let bytes = vec![0u8; 10];
-        let mut out = Vec::new();
         let e = read_records(
             Path::new("f.bin"),
             &mut Cursor::new(&bytes),
@@ -174,7 +197,7 @@ mod tests {
             "element 'vertex'",
             8,
             decode,
-            &mut out,
+            3,
         )
         .unwrap_err();
         assert_eq!(e.location(), Some(crate::error::Location::Byte(110)));
@@ -183,7 +206,6 @@ mod tests {
             s.contains("f.bin") && s.contains("record 2") && s.contains("vertex"),
             "{s}"
         );
-        assert_eq!(out.len(), 2);
     }
 
     #[test]
