@@ -55,6 +55,35 @@ fn every_crash_input_is_a_clean_result() {
     }
 }
 
+/// The LAS findings: every one is a header the `las` crate mishandles (an overflowing
+/// point-data size, an extended VLR longer than the file, a LAZ chunk table larger than the
+/// file); ggs refuses each with an error before the crate sees it.
+#[test]
+fn las_crash_inputs_are_refused_with_located_errors() {
+    let mut n = 0;
+    for (target, file) in cases() {
+        if target != "las" {
+            continue;
+        }
+        let bytes = std::fs::read(&file).unwrap();
+        let opts = ReadOptions {
+            format: Some(Format::Las),
+            ..Default::default()
+        };
+        let e = parse_bytes(&file, &bytes, &opts).unwrap_err();
+        let s = e.to_string();
+        assert!(
+            s.contains("overflow any file size")
+                || s.contains("extended VLR")
+                || s.contains("chunk table"),
+            "{s}"
+        );
+        assert!(matches!(e.location(), Some(ggs::Location::Byte(_))), "{s}");
+        n += 1;
+    }
+    assert!(n >= 100, "{n} LAS inputs");
+}
+
 #[test]
 fn corrupt_laz_chunk_count_is_refused_before_allocating() {
     let file =

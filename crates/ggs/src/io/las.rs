@@ -17,6 +17,7 @@ pub fn read_las<R: Read + Seek + Send + Sync + 'static>(
     path: &Path,
     mut r: R,
 ) -> Result<Vec<Point>> {
+    check_header(path, &mut r)?;
     check_laz_chunk_table(path, &mut r)?;
     let file_len = stream_len(&mut r).map_err(|e| GgsError::io(path, e))?;
     if let Some(points) = read_uncompressed(path, &mut r, file_len)? {
@@ -117,6 +118,75 @@ pub(crate) fn stream_len<R: Seek>(r: &mut R) -> std::io::Result<u64> {
     let len = r.seek(SeekFrom::End(0))?;
     r.seek(SeekFrom::Start(0))?;
     Ok(len)
+}
+
+/// Size of an EVLR's header (before its data).
+const EVLR_HEADER_BYTES: u64 = 60;
+
+/// Refuse what the `las` crate (0.9) would not survive, before it sees the file (both found
+/// by fuzzing):
+/// - a point count × record length that overflows 64 bits
+///   (`raw::Header::offset_to_end_of_points` multiplies without a check: a panic in debug
+///   builds, a wrapped offset in release ones);
+/// - an extended VLR (LAS 1.4) whose declared length runs past the end of the file
+///   (`raw::Vlr::read_from` allocates the declared length first: 17 GB for a 600-byte file,
+///   and the process aborts).
+///
+/// A header the crate cannot parse is left for it to report. The stream is rewound.
+fn check_header<R: Read + Seek>(path: &Path, r: &mut R) -> Result<()> {
+    let io = |e| GgsError::io(path, e);
+    let file_len = stream_len(r).map_err(io)?;
+    let Ok(raw) = las::raw::Header::read_from(&mut *r) else {
+        r.seek(SeekFrom::Start(0)).map_err(io)?;
+        return Ok(());
+    };
+    // As the crate counts them: the legacy field, else the LAS 1.4 64-bit one.
+    let n = match (raw.number_of_point_records, raw.large_file) {
+        (0, Some(lf)) => lf.number_of_point_records,
+        (legacy, _) => legacy as u64,
+    };
+    let len = raw.point_data_record_length as u64;
+    if n.checked_mul(len)
+        .and_then(|b| b.checked_add(raw.offset_to_point_data as u64))
+        .is_none()
+    {
+        r.seek(SeekFrom::Start(0)).map_err(io)?;
+        return Err(GgsError::at_byte(
+            path,
+            0,
+            format!("LAS header: {n} points of {len} bytes overflow any file size"),
+        ));
+    }
+    let mut result = Ok(());
+    if let Some(evlr) = raw.evlr {
+        let mut at = evlr.start_of_first_evlr;
+        for k in 0..evlr.number_of_evlrs {
+            let mut head = [0u8; EVLR_HEADER_BYTES as usize];
+            let read = r
+                .seek(SeekFrom::Start(at))
+                .and_then(|_| r.read_exact(&mut head));
+            if read.is_err() {
+                break; // the crate reports a missing EVLR itself
+            }
+            let data = u64::from_le_bytes(head[20..28].try_into().expect("8 bytes"));
+            let end = at
+                .checked_add(EVLR_HEADER_BYTES)
+                .and_then(|e| e.checked_add(data));
+            if end.is_none_or(|e| e > file_len) {
+                result = Err(GgsError::at_byte(
+                    path,
+                    at + 20,
+                    format!(
+                        "LAS extended VLR {k} declares {data} bytes of data, but the file ends at byte {file_len}"
+                    ),
+                ));
+                break;
+            }
+            at = end.unwrap_or(file_len);
+        }
+    }
+    r.seek(SeekFrom::Start(0)).map_err(io)?;
+    result
 }
 
 /// Bytes of a LAZ chunk's first point at the least (it is stored raw: point format 0 is 20
