@@ -36,7 +36,7 @@ def run(cmd, capture=True):
     secs = time.perf_counter() - t0
     if status != 0:
         sys.exit(f"{' '.join(map(str, cmd))} failed: {err.decode()}")
-    return out, secs, usage.ru_maxrss / 1024.0  # MB
+    return out, secs, usage.ru_maxrss * 1024 / 1e6  # MB (ru_maxrss is in KiB)
 
 
 def make_points(n, seed=6):

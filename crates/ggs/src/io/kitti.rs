@@ -17,7 +17,7 @@ pub fn parse_kitti_bin(path: &Path, bytes: &[u8]) -> Result<Vec<Point>> {
 
 /// Read a KITTI `.bin` scan of `len` bytes from a stream, [`stream::CHUNK_BYTES`] at a
 /// time (reflectance dropped).
-pub fn read_kitti_bin<R: Read>(path: &Path, r: &mut R, len: u64) -> Result<Vec<Point>> {
+pub fn read_kitti_bin<R: Read + Send>(path: &Path, r: &mut R, len: u64) -> Result<Vec<Point>> {
     let rec = RECORD as u64;
     if !len.is_multiple_of(rec) {
         return Err(GgsError::at_byte(

@@ -64,7 +64,7 @@ pub fn read_las<R: Read + Seek + Send + Sync + 'static>(
 /// 32-bit integers that open every point format) turned into `scale · X + offset` exactly as
 /// `las::Transform::direct` does. `None` for LAZ, or a header the crate refuses (the caller
 /// then reads through the crate, which reports the error). The stream is rewound first.
-fn read_uncompressed<R: Read + Seek>(
+fn read_uncompressed<R: Read + Seek + Send>(
     path: &Path,
     r: &mut R,
     file_len: u64,

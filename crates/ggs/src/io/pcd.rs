@@ -37,7 +37,11 @@ const MAX_HEADER_BYTES: usize = 1 << 20;
 /// (when known) bounds what an overstated POINTS may reserve. `DATA binary` files are
 /// decoded [`stream::CHUNK_BYTES`] at a time (bounded memory beside the output); ascii and
 /// binary_compressed files are read whole, then parsed by [`parse_pcd`].
-pub fn read_pcd<R: BufRead>(path: &Path, r: &mut R, file_len: Option<u64>) -> Result<Vec<Point>> {
+pub fn read_pcd<R: BufRead + Send>(
+    path: &Path,
+    r: &mut R,
+    file_len: Option<u64>,
+) -> Result<Vec<Point>> {
     let mut header = stream::read_header(path, r, MAX_HEADER_BYTES, "DATA", |l| {
         l.split_whitespace()
             .next()

@@ -207,11 +207,15 @@ fn parse_header(path: &Path, bytes: &[u8]) -> Result<Header> {
 /// [`stream::CHUNK_BYTES`] at a time and the elements after it never read, so the memory
 /// beside the output is one chunk. Ascii files and rows with lists are read whole, then
 /// parsed by [`parse_ply`].
-pub fn read_ply<R: BufRead>(path: &Path, r: &mut R, file_len: Option<u64>) -> Result<Vec<Point>> {
+pub fn read_ply<R: BufRead + Send>(
+    path: &Path,
+    r: &mut R,
+    file_len: Option<u64>,
+) -> Result<Vec<Point>> {
     read_ply_chunked(path, r, file_len, stream::CHUNK_BYTES)
 }
 
-fn read_ply_chunked<R: BufRead>(
+fn read_ply_chunked<R: BufRead + Send>(
     path: &Path,
     r: &mut R,
     file_len: Option<u64>,

@@ -23,18 +23,22 @@ pub fn read_full<R: Read>(r: &mut R, buf: &mut [u8]) -> std::io::Result<usize> {
     Ok(got)
 }
 
+/// Read buffers of [`read_records`] (of `CHUNK_BYTES` each).
+const BUFFERS: usize = 4;
+
 /// Records decoded per parallel task.
 const TASK_RECORDS: usize = 1 << 14;
 
 /// Decode `count` records of `stride` bytes each from `r`, whose next byte is byte `start` of
-/// the file, into points. `chunk_bytes` (≥ `stride`) bounds the read buffer; each chunk is
-/// decoded in parallel (rayon) straight into the output, which is allocated zeroed for
+/// the file, into points. A reader thread fills buffers of `chunk_bytes` (≥ `stride`, whole
+/// records) while the previous one is decoded in parallel (rayon) straight into the output,
+/// so the disk and the decoding overlap; the output is allocated zeroed for
 /// `min(count, reserve)` points up front (`reserve`: how many records the file's size can
-/// hold, so an overstated count costs nothing), so its pages are first touched by the
+/// hold, so an overstated count costs nothing) and its pages are first touched by the
 /// decoding threads. The result does not depend on the thread count. A source that ends
 /// early is an error at the byte where it ended, naming `what`.
 #[allow(clippy::too_many_arguments)]
-pub fn read_records<R: Read>(
+pub fn read_records<R: Read + Send>(
     path: &Path,
     r: &mut R,
     start: u64,
@@ -46,6 +50,7 @@ pub fn read_records<R: Read>(
     reserve: u64,
 ) -> Result<Vec<Point>> {
     use rayon::prelude::*;
+    use std::sync::mpsc;
     if stride == 0 {
         return Err(GgsError::in_file(
             path,
@@ -54,40 +59,66 @@ pub fn read_records<R: Read>(
     }
     let mut out = vec![[0.0f64; 3]; count.min(reserve) as usize];
     let per_chunk = (chunk_bytes / stride).max(1);
-    let mut buf = vec![0u8; per_chunk * stride];
-    let mut done = 0u64;
-    while done < count {
-        let k = (count - done).min(per_chunk as u64) as usize;
-        let want = k * stride;
-        let got = read_full(r, &mut buf[..want]).map_err(|e| GgsError::io(path, e))?;
-        let whole = got / stride;
-        let first = done as usize;
-        if out.len() < first + whole {
-            out.resize(first + whole, [0.0; 3]);
-        }
-        out[first..first + whole]
-            .par_chunks_mut(TASK_RECORDS)
-            .zip(buf[..whole * stride].par_chunks(TASK_RECORDS * stride))
-            .for_each(|(o, b)| {
-                for (p, rec) in o.iter_mut().zip(b.chunks_exact(stride)) {
-                    *p = decode(rec);
-                }
-            });
-        if got < want {
-            let at = start + (done + whole as u64) * stride as u64;
-            return Err(GgsError::at_byte(
-                path,
-                start + done * stride as u64 + got as u64,
-                format!(
-                    "truncated: {what} declares {count} records of {stride} bytes; record {} (at byte {at}) runs past the end of the file",
-                    done + whole as u64
-                ),
-            ));
-        }
-        done += k as u64;
+    // BUFFERS buffers circulate: being filled by the reader, queued, or being decoded.
+    let (full_tx, full_rx) = mpsc::sync_channel::<(Vec<u8>, std::io::Result<usize>)>(BUFFERS - 1);
+    let (empty_tx, empty_rx) = mpsc::channel::<Vec<u8>>();
+    for _ in 0..BUFFERS {
+        let _ = empty_tx.send(vec![0u8; per_chunk * stride]);
     }
-    out.truncate(count as usize);
-    Ok(out)
+    std::thread::scope(|scope| {
+        // Owned here, so that an early return (or a panic) drops them and frees the reader.
+        let (empty_tx, full_rx) = (empty_tx, full_rx);
+        scope.spawn(move || {
+            let mut done = 0u64;
+            while done < count {
+                let Ok(mut buf) = empty_rx.recv() else { return };
+                let want = (count - done).min(per_chunk as u64) as usize * stride;
+                let got = read_full(r, &mut buf[..want]);
+                let last = !matches!(got, Ok(g) if g == want);
+                if full_tx.send((buf, got)).is_err() || last {
+                    return;
+                }
+                done += (want / stride) as u64;
+            }
+        });
+        let mut done = 0u64;
+        while done < count {
+            let k = (count - done).min(per_chunk as u64) as usize;
+            let want = k * stride;
+            let (buf, got) = full_rx
+                .recv()
+                .expect("the reader sends until the end or an error");
+            let got = got.map_err(|e| GgsError::io(path, e))?;
+            let whole = got / stride;
+            let first = done as usize;
+            if out.len() < first + whole {
+                out.resize(first + whole, [0.0; 3]);
+            }
+            out[first..first + whole]
+                .par_chunks_mut(TASK_RECORDS)
+                .zip(buf[..whole * stride].par_chunks(TASK_RECORDS * stride))
+                .for_each(|(o, b)| {
+                    for (p, rec) in o.iter_mut().zip(b.chunks_exact(stride)) {
+                        *p = decode(rec);
+                    }
+                });
+            if got < want {
+                let at = start + (done + whole as u64) * stride as u64;
+                return Err(GgsError::at_byte(
+                    path,
+                    start + done * stride as u64 + got as u64,
+                    format!(
+                        "truncated: {what} declares {count} records of {stride} bytes; record {} (at byte {at}) runs past the end of the file",
+                        done + whole as u64
+                    ),
+                ));
+            }
+            let _ = empty_tx.send(buf);
+            done += k as u64;
+        }
+        out.truncate(count as usize);
+        Ok(out)
+    })
 }
 
 /// Skip `len` bytes of `r` (at byte `start` of the file), or fail naming `what`.
