@@ -2,7 +2,7 @@
 
 mod common;
 
-use common::{data, ggs, s, tmp_dir};
+use common::{assert_fails, data, ggs, s, tmp_dir};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
@@ -129,14 +129,6 @@ fn auto_voxel_is_announced() {
     assert!(out.status.success());
     let stdout = String::from_utf8(out.stdout).unwrap();
     assert!(stdout.contains("auto"), "{stdout}");
-}
-
-fn assert_fails(args: &[&str], needle: &str) {
-    let out = ggs(args);
-    assert_eq!(out.status.code(), Some(2), "args {args:?}");
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(err.contains(needle), "expected '{needle}' in: {err}");
-    assert!(!err.contains("panicked"), "{err}");
 }
 
 #[test]

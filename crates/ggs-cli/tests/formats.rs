@@ -3,7 +3,7 @@
 
 mod common;
 
-use common::{data, ggs, s, tmp_dir};
+use common::{assert_fails as fails, data, ggs, s, tmp_dir};
 use std::path::{Path, PathBuf};
 
 /// Extensions `ggs convert` writes, and whether they keep f64 exactly.
@@ -28,14 +28,6 @@ fn ok(args: &[&str]) -> String {
         String::from_utf8_lossy(&o.stderr)
     );
     String::from_utf8(o.stdout).unwrap()
-}
-
-fn fails(args: &[&str], needle: &str) {
-    let o = ggs(args);
-    assert_eq!(o.status.code(), Some(2), "ggs {args:?} should fail");
-    let e = String::from_utf8_lossy(&o.stderr);
-    assert!(e.contains(needle), "expected '{needle}' in: {e}");
-    assert!(!e.contains("panicked"), "{e}");
 }
 
 /// `bun0.pcd` and `bun4.pcd` converted to every writable format (and ascii PLY).

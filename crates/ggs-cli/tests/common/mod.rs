@@ -19,6 +19,16 @@ pub fn ggs(args: &[&str]) -> Output {
         .expect("run ggs")
 }
 
+/// `ggs ARGS` exits with status 2 and a message on stderr that contains `needle`, without
+/// a panic.
+pub fn assert_fails(args: &[&str], needle: &str) {
+    let out = ggs(args);
+    assert_eq!(out.status.code(), Some(2), "args {args:?}");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains(needle), "expected '{needle}' in: {err}");
+    assert!(!err.contains("panicked"), "{err}");
+}
+
 /// A fresh temporary folder `<prefix>-<tag>-<pid>` (emptied; created if `create`).
 pub fn tmp_dir(prefix: &str, tag: &str, create: bool) -> PathBuf {
     let d = std::env::temp_dir().join(format!("{prefix}-{tag}-{}", std::process::id()));
