@@ -157,8 +157,8 @@ fn check_header<R: Read + Seek>(path: &Path, r: &mut R) -> Result<()> {
             format!("LAS header: {n} points of {len} bytes overflow any file size"),
         ));
     }
-    let mut result = Ok(());
-    if let Some(evlr) = raw.evlr {
+    let mut result = check_laszip_vlr(path, r, &raw, file_len);
+    if let (Ok(()), Some(evlr)) = (&result, raw.evlr) {
         let mut at = evlr.start_of_first_evlr;
         for k in 0..evlr.number_of_evlrs {
             let mut head = [0u8; EVLR_HEADER_BYTES as usize];
@@ -187,6 +187,50 @@ fn check_header<R: Read + Seek>(path: &Path, r: &mut R) -> Result<()> {
     }
     r.seek(SeekFrom::Start(0)).map_err(io)?;
     result
+}
+
+/// Size of a VLR's header (before its data).
+const VLR_HEADER_BYTES: u64 = 54;
+
+/// A LASzip VLR (user id `laszip encoded`, record 22204) must describe at least one item:
+/// the `laz` crate (0.12) panics on an empty list (`details.rs`: "There should be at least
+/// one LazItem"), found by fuzzing. The item count is the u16 at byte 32 of the VLR's data.
+fn check_laszip_vlr<R: Read + Seek>(
+    path: &Path,
+    r: &mut R,
+    raw: &las::raw::Header,
+    file_len: u64,
+) -> Result<()> {
+    let mut at = raw.header_size as u64;
+    for _ in 0..raw.number_of_variable_length_records {
+        let mut head = [0u8; VLR_HEADER_BYTES as usize];
+        if r.seek(SeekFrom::Start(at))
+            .and_then(|_| r.read_exact(&mut head))
+            .is_err()
+        {
+            return Ok(()); // the crate reports a missing VLR itself
+        }
+        let user = &head[2..18];
+        let record = u16::from_le_bytes([head[18], head[19]]);
+        let len = u16::from_le_bytes([head[20], head[21]]) as u64;
+        let data = at + VLR_HEADER_BYTES;
+        if user.starts_with(b"laszip encoded") && record == 22204 && data + 34 <= file_len {
+            let mut items = [0u8; 2];
+            if r.seek(SeekFrom::Start(data + 32))
+                .and_then(|_| r.read_exact(&mut items))
+                .is_ok()
+                && u16::from_le_bytes(items) == 0
+            {
+                return Err(GgsError::at_byte(
+                    path,
+                    data + 32,
+                    "LASzip VLR: 0 compressed items (expected at least one)",
+                ));
+            }
+        }
+        at = data + len;
+    }
+    Ok(())
 }
 
 /// Bytes of a LAZ chunk's first point at the least (it is stored raw: point format 0 is 20
