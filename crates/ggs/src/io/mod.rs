@@ -276,6 +276,9 @@ pub fn parse_bytes(
     };
     let len = Some(bytes.len() as u64);
     match fmt {
+        Format::Ply if opts.mesh_samples.is_some() => {
+            sampled(path, opts, ply::parse_ply_mesh(path, bytes)?)
+        }
         Format::Ply => ply::read_ply(path, &mut r, len),
         Format::Pcd => pcd::read_pcd(path, &mut r, len),
         Format::KittiBin => kitti::read_kitti_bin(path, &mut r, bytes.len() as u64),
