@@ -61,7 +61,8 @@ fn every_crash_input_is_a_clean_result() {
 /// mishandles (an overflowing point-data size, an extended VLR longer than the file, a LAZ
 /// chunk table larger than the file, a LASzip VLR without items); ggs refuses each with an
 /// error before the crates see it. (`las-decoder/`: corrupt LAZ data that trips a debug
-/// assertion of the `laz` arithmetic decoder; replayed above, where only "no panic" holds.)
+/// assertion of the `laz` arithmetic decoder, or a panic of the crate that ggs catches;
+/// replayed above, where only "no panic escapes" holds.)
 #[test]
 fn las_crash_inputs_are_refused_with_located_errors() {
     let mut n = 0;
@@ -109,4 +110,28 @@ fn corrupt_laz_chunk_count_is_refused_before_allocating() {
         "{s}"
     );
     assert!(matches!(e.location(), Some(ggs::Location::Byte(_))));
+}
+
+/// Corrupt LAZ data on which the `laz` crate panics in release builds too (an index past an
+/// empty variable-size chunk table; a record decompressor without items): the panic is
+/// caught at the crate boundary and reported as a parse error naming the file.
+#[test]
+fn laz_decoder_panics_become_errors() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tests/data/fuzz/las-decoder");
+    for name in [
+        "crash-096984928af19240f77ab18651abf61f28148635",
+        "crash-ec7922c3577fdc648fe9795ee6d6d1bc0a77c4ce",
+    ] {
+        let file = dir.join(name);
+        let bytes = std::fs::read(&file).unwrap();
+        let opts = ReadOptions {
+            format: Some(Format::Las),
+            ..Default::default()
+        };
+        let e = parse_bytes(&file, &bytes, &opts).unwrap_err().to_string();
+        assert!(
+            e.contains(name) && e.contains("corrupt LAS/LAZ data"),
+            "{e}"
+        );
+    }
 }

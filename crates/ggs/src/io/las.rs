@@ -23,6 +23,31 @@ pub fn read_las<R: Read + Seek + Send + Sync + 'static>(
     if let Some(points) = read_uncompressed(path, &mut r, file_len)? {
         return Ok(points);
     }
+    // The `laz` crate (0.12) panics on some corrupt LAZ data (found by fuzzing: an index
+    // past an empty chunk table, a LASzip VLR whose items it cannot use); its state is
+    // dropped with the panic, so the panic is caught here and reported as a parse error.
+    let decoded = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+        read_with_crate(path, r, file_len)
+    }));
+    decoded.unwrap_or_else(|panic| {
+        let why = panic
+            .downcast_ref::<&str>()
+            .map(|s| s.to_string())
+            .or_else(|| panic.downcast_ref::<String>().cloned())
+            .unwrap_or_default();
+        Err(GgsError::in_file(
+            path,
+            format!("corrupt LAS/LAZ data: the las/laz decoder gave up ({why})"),
+        ))
+    })
+}
+
+/// Every point through the `las` crate, [`BATCH`] at a time.
+fn read_with_crate<R: Read + Seek + Send + Sync + 'static>(
+    path: &Path,
+    r: R,
+    file_len: u64,
+) -> Result<Vec<Point>> {
     let mut reader =
         las::Reader::new(r).map_err(|e| GgsError::in_file(path, format!("LAS header: {e}")))?;
     let header = reader.header();
