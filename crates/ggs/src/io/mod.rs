@@ -54,7 +54,7 @@ pub mod xyz;
 
 use crate::cloud::Cloud;
 use crate::error::{GgsError, Result};
-use std::io::{BufRead, BufReader, Read, Write};
+use std::io::{BufRead, BufReader, Read, Seek, Write};
 use std::path::Path;
 
 /// Point-cloud file formats.
@@ -191,26 +191,8 @@ pub fn read_cloud_with(path: &Path, opts: &ReadOptions) -> Result<LoadedCloud> {
     let io = |e| GgsError::io(path, e);
     let file = std::fs::File::open(path).map_err(io)?;
     let file_bytes = file.metadata().map_err(io)?.len();
-    let mut r = BufReader::with_capacity(READ_BUFFER, file);
-    let fmt = match opts.format {
-        Some(f) => f,
-        None => detect(path, &mut r)?,
-    };
-    let mut points = match fmt {
-        Format::Ply if opts.mesh_samples.is_some() => {
-            sampled(path, opts, ply::parse_ply_mesh(path, &read_all(path, r)?)?)?
-        }
-        Format::Ply => ply::read_ply(path, &mut r, Some(file_bytes))?,
-        Format::Pcd => pcd::read_pcd(path, &mut r, Some(file_bytes))?,
-        Format::KittiBin => kitti::read_kitti_bin(path, &mut r, file_bytes)?,
-        Format::Las => las::read_las(path, r)?,
-        Format::E57 => e57::read_e57(path, r, opts.e57)?,
-        Format::Npz => npz::read_npz_points(path, r, opts.npz_array.as_deref())?,
-        Format::Obj => sampled(path, opts, mesh::parse_obj(path, &read_all(path, r)?)?)?,
-        Format::Stl => sampled(path, opts, mesh::parse_stl(path, &read_all(path, r)?)?)?,
-        Format::Text => xyz::parse_xyz(path, &read_all(path, r)?)?,
-        Format::Npy => npy::points_of(path, &npy::parse_npy(path, &read_all(path, r)?)?)?,
-    };
+    let r = BufReader::with_capacity(READ_BUFFER, file);
+    let (fmt, mut points) = read_points(path, r, file_bytes, opts)?;
     let dropped = crate::cloud::drop_non_finite(&mut points);
     if points.is_empty() {
         return Err(GgsError::EmptyCloud {
@@ -269,27 +251,38 @@ pub fn parse_bytes(
     bytes: &[u8],
     opts: &ReadOptions,
 ) -> Result<Vec<crate::cloud::Point>> {
-    let mut r = std::io::Cursor::new(bytes);
+    let r = std::io::Cursor::new(bytes.to_vec());
+    Ok(read_points(path, r, bytes.len() as u64, opts)?.1)
+}
+
+/// The one dispatch behind [`read_cloud_with`] and [`parse_bytes`]: detect (or take) the
+/// format, then stream or read whole as the format allows. `len`: the source's size.
+fn read_points<R: BufRead + Seek + Send + Sync + 'static>(
+    path: &Path,
+    mut r: R,
+    len: u64,
+    opts: &ReadOptions,
+) -> Result<(Format, Vec<crate::cloud::Point>)> {
     let fmt = match opts.format {
         Some(f) => f,
         None => detect(path, &mut r)?,
     };
-    let len = Some(bytes.len() as u64);
-    match fmt {
+    let points = match fmt {
         Format::Ply if opts.mesh_samples.is_some() => {
-            sampled(path, opts, ply::parse_ply_mesh(path, bytes)?)
+            sampled(path, opts, ply::parse_ply_mesh(path, &read_all(path, r)?)?)?
         }
-        Format::Ply => ply::read_ply(path, &mut r, len),
-        Format::Pcd => pcd::read_pcd(path, &mut r, len),
-        Format::KittiBin => kitti::read_kitti_bin(path, &mut r, bytes.len() as u64),
-        Format::Las => las::read_las(path, std::io::Cursor::new(bytes.to_vec())),
-        Format::E57 => e57::read_e57(path, r, opts.e57),
-        Format::Npz => npz::read_npz_points(path, r, opts.npz_array.as_deref()),
-        Format::Obj => sampled(path, opts, mesh::parse_obj(path, bytes)?),
-        Format::Stl => sampled(path, opts, mesh::parse_stl(path, bytes)?),
-        Format::Text => xyz::parse_xyz(path, bytes),
-        Format::Npy => npy::points_of(path, &npy::parse_npy(path, bytes)?),
-    }
+        Format::Ply => ply::read_ply(path, &mut r, Some(len))?,
+        Format::Pcd => pcd::read_pcd(path, &mut r, Some(len))?,
+        Format::KittiBin => kitti::read_kitti_bin(path, &mut r, len)?,
+        Format::Las => las::read_las(path, r)?,
+        Format::E57 => e57::read_e57(path, r, opts.e57)?,
+        Format::Npz => npz::read_npz_points(path, r, opts.npz_array.as_deref())?,
+        Format::Obj => sampled(path, opts, mesh::parse_obj(path, &read_all(path, r)?)?)?,
+        Format::Stl => sampled(path, opts, mesh::parse_stl(path, &read_all(path, r)?)?)?,
+        Format::Text => xyz::parse_xyz(path, &read_all(path, r)?)?,
+        Format::Npy => npy::points_of(path, &npy::parse_npy(path, &read_all(path, r)?)?)?,
+    };
+    Ok((fmt, points))
 }
 
 /// Write a point cloud in the format of `format`, or of the path's extension: PLY (binary
