@@ -1,10 +1,9 @@
 //! `ggs bench PROTOCOL`: run a published benchmark protocol or a manifest of pairs.
 
-use crate::refine_args::{parse_method, RefineOptions};
+use crate::register::PipelineArgs;
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use ggs::benchmark::{self, missing_files, Protocol, RunConfig};
-use ggs::rotations::RotationSet;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::io::IsTerminal;
 use std::path::PathBuf;
@@ -31,16 +30,13 @@ pub struct BenchArgs {
     /// Voxel size (default: the protocol's, or each manifest pair's own).
     #[arg(long)]
     pub voxel: Option<f64>,
-    /// Rotation set (default: the protocol's).
-    #[arg(long)]
-    pub rotations: Option<String>,
     #[command(flatten)]
-    pub search: crate::register::SearchArgs,
-    /// Refinement: gicp (default), p2plane, p2p, none.
-    #[arg(long, default_value = "gicp")]
-    pub refine: String,
-    #[command(flatten)]
-    pub refine_options: RefineOptions,
+    pub pipeline: PipelineArgs,
+    /// Move every source by a random rigid motion (uniform rotation, translation up to the
+    /// source's diagonal) drawn from this seed and the pair's id, composing the ground truth:
+    /// a test that the results do not depend on the pose of the source.
+    #[arg(long, value_name = "SEED")]
+    pub move_seed: Option<u64>,
     /// Success threshold on RRE, degrees (default: the protocol's).
     #[arg(long, value_name = "DEG")]
     pub max_rre: Option<f64>,
@@ -97,22 +93,17 @@ pub fn run(args: BenchArgs) -> Result<()> {
             list.join("\n")
         );
     }
-    let refine = match parse_method(&args.refine)? {
-        Some(m) => Some(args.refine_options.config(m, args.threads)?),
-        None => None,
-    };
-    let rotations_name = args.rotations.as_deref().unwrap_or(defaults.rotations);
-    let (mode, precision) = args.search.parse()?;
+    let mut pipeline = args.pipeline.config(args.threads)?;
+    if args.pipeline.preset == "paper" && args.pipeline.rotations.is_none() {
+        pipeline.rotations = ggs::rotations::RotationSet::named(defaults.paper_rotations)?;
+    }
     let cfg = RunConfig {
         voxel: args.voxel,
-        rotations: RotationSet::named(rotations_name)?,
-        refine,
-        threads: args.threads,
+        pipeline,
         max_rre_deg: args.max_rre.unwrap_or(defaults.max_rre_deg),
         max_rte: args.max_rte.or(defaults.max_rte),
         default_voxel: defaults.voxel,
-        mode,
-        precision,
+        motion_seed: args.move_seed,
     };
     let out = args
         .out

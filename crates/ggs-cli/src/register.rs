@@ -5,18 +5,18 @@ use crate::refine_args::{parse_method, print_report, read_matrix, RefineOptions}
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use ggs::io::{self, ply, ReadOptions};
-use ggs::refine::{self, RefineResult};
+use ggs::pipeline::{
+    self, Preset, Registration, RegistrationConfig, Verification, VoxelSize, AUTO_VOXEL_CELLS,
+};
+use ggs::refine;
 use ggs::rotations::{RotationSet, DUPLICATE_TOL_DEG};
-use ggs::search::{self, SearchConfig, SearchResult};
+use ggs::search;
 use ggs::{Cloud, Point, Rigid};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::Instant;
-
-/// Voxels along the target's longest side when no `--voxel` is given.
-const AUTO_VOXEL_CELLS: usize = 32;
 
 #[derive(Args)]
 pub struct RegisterArgs {
@@ -27,11 +27,10 @@ pub struct RegisterArgs {
     /// Voxel size in the clouds' units; default: the target's longest side / 32.
     #[arg(long, allow_negative_numbers = true)]
     pub voxel: Option<f64>,
-    /// Built-in rotation set: limited15, full15, limited10, hopf15, hopf15-dedup, ico162-s10.
-    #[arg(long, default_value = "limited15", conflicts_with = "rotations_file")]
-    pub rotations: String,
+    #[command(flatten)]
+    pub pipeline: PipelineArgs,
     /// Rotation set from a .npy file of shape [N, 3, 3].
-    #[arg(long, value_name = "F")]
+    #[arg(long, value_name = "F", conflicts_with = "rotations")]
     pub rotations_file: Option<PathBuf>,
     /// Drop rotations within this many degrees of an earlier one in the set.
     #[arg(long, value_name = "DEG")]
@@ -39,9 +38,9 @@ pub struct RegisterArgs {
     /// Worker threads (default: all cores). The result does not depend on it.
     #[arg(long, default_value_t = 0)]
     pub threads: usize,
-    /// Report the K best distinct hypotheses.
-    #[arg(long, default_value_t = 1)]
-    pub top_k: usize,
+    /// Report the K best distinct coarse hypotheses (default: as many as are verified).
+    #[arg(long)]
+    pub top_k: Option<usize>,
     /// Rotations within this angle (degrees) of a better one are not distinct
     /// (default: 2 × the set's step).
     #[arg(long, value_name = "DEG")]
@@ -49,8 +48,6 @@ pub struct RegisterArgs {
     /// Memory budget, e.g. 2G or 512M (default: half of physical memory).
     #[arg(long, value_name = "SIZE")]
     pub max_memory: Option<String>,
-    #[command(flatten)]
-    pub search: SearchArgs,
     /// Print the time of every stage (wall and CPU per stage).
     #[arg(long)]
     pub timings: bool,
@@ -59,24 +56,99 @@ pub struct RegisterArgs {
     /// Write target (blue) and moved source (orange) together to this PLY file.
     #[arg(long, value_name = "OUT.ply")]
     pub overlay: Option<PathBuf>,
-    /// Refinement after the coarse search: gicp, p2plane, p2p or none.
-    #[arg(long, default_value = "gicp")]
-    pub refine: String,
-    #[command(flatten)]
-    pub refine_options: RefineOptions,
     /// No progress bar and no warnings.
     #[arg(short, long)]
     pub quiet: bool,
 }
 
+/// The configuration of the pipeline, shared by `register` and `bench`: a preset and the
+/// flags that change it.
+#[derive(Args, Clone)]
+pub struct PipelineArgs {
+    /// default: full-SO(3) set, coarse-to-fine, polish and verification of the distinct
+    /// hypotheses, GICP; paper: the GGS paper's configuration (limited15, exhaustive, one
+    /// hypothesis, GICP).
+    #[arg(long, default_value = "default")]
+    pub preset: String,
+    /// Built-in rotation set: hopf15-id (default), limited15, full15, limited10, hopf15,
+    /// hopf15-dedup, ico162-s10.
+    #[arg(long)]
+    pub rotations: Option<String>,
+    #[command(flatten)]
+    pub search: SearchArgs,
+    /// Verify at most N distinct hypotheses (1: only the coarse winner).
+    #[arg(long, value_name = "N")]
+    pub max_hypotheses: Option<usize>,
+    /// Verify the hypotheses whose match score is at least this fraction of the winner's.
+    #[arg(long, value_name = "F")]
+    pub margin: Option<f64>,
+    /// Take the coarse winner without verification.
+    #[arg(long)]
+    pub no_verify: bool,
+    /// Keep the grid's rotations (no finer rotation grid around each hypothesis).
+    #[arg(long)]
+    pub no_polish: bool,
+    /// Refinement after the coarse search: gicp (default), p2plane, p2p or none.
+    #[arg(long)]
+    pub refine: Option<String>,
+    #[command(flatten)]
+    pub refine_options: RefineOptions,
+}
+
+impl PipelineArgs {
+    /// The preset, changed by the flags given (voxel and rotation set not included).
+    pub fn config(&self, threads: usize) -> Result<RegistrationConfig> {
+        let preset: Preset = self.preset.parse().context("--preset")?;
+        let mut cfg = RegistrationConfig::preset(preset);
+        cfg.threads = threads;
+        if let Some(name) = &self.rotations {
+            cfg.rotations = RotationSet::named(name)?;
+        }
+        let (mode, precision) = self.search.parse(cfg.search.mode)?;
+        cfg.search.mode = mode;
+        cfg.search.precision = precision;
+        if self.no_verify {
+            cfg.verify = None;
+        }
+        if let Some(v) = &mut cfg.verify {
+            if let Some(n) = self.max_hypotheses {
+                if n == 0 {
+                    bail!("--max-hypotheses must be at least 1");
+                }
+                v.max_hypotheses = n;
+            }
+            if let Some(m) = self.margin {
+                if !(m.is_finite() && (0.0..=1.0).contains(&m)) {
+                    bail!("--margin must be in [0, 1], got {m}");
+                }
+                v.margin = m;
+            }
+        } else if self.max_hypotheses.is_some() || self.margin.is_some() {
+            bail!("--max-hypotheses and --margin need verification (not with --no-verify or --preset paper)");
+        }
+        if self.no_polish {
+            cfg.polish = None;
+        }
+        let method = match &self.refine {
+            Some(name) => parse_method(name)?,
+            None => cfg.refine.map(|r| r.method),
+        };
+        cfg.refine = match method {
+            Some(m) => Some(self.refine_options.config(m, threads)?),
+            None => None,
+        };
+        Ok(cfg)
+    }
+}
+
 /// How the rotations are searched (shared by `register` and `bench`).
 #[derive(Args, Clone)]
 pub struct SearchArgs {
-    /// exhaustive: every rotation at the voxel size (GGS); coarse-to-fine: every rotation
-    /// at --coarse-factor × voxel, then the best --coarse-keep of them and their grid
-    /// neighbours at the voxel size (much faster; same answers on every benchmark pair).
-    #[arg(long, default_value = "exhaustive", value_name = "MODE")]
-    pub search: String,
+    /// exhaustive: every rotation at the voxel size (GGS); coarse-to-fine (the default preset's):
+    /// every rotation at --coarse-factor × voxel, then the best --coarse-keep of them and their
+    /// grid neighbours at the voxel size (much faster; same answers on every benchmark pair).
+    #[arg(long, value_name = "MODE")]
+    pub search: Option<String>,
     /// Correlation arithmetic: mixed (f32 with proven error bounds, f64 re-scoring of every
     /// rotation whose bound reaches the best: same picks as f64) or f64.
     #[arg(long, default_value = "mixed")]
@@ -93,15 +165,19 @@ pub struct SearchArgs {
 }
 
 impl SearchArgs {
-    /// The search mode and precision these options ask for.
-    pub fn parse(&self) -> Result<(search::SearchMode, search::Precision)> {
+    /// The search mode (the preset's `mode` unless --search is given) and precision.
+    pub fn parse(&self, preset: search::SearchMode) -> Result<(search::SearchMode, search::Precision)> {
         let c2f = search::CoarseToFine {
             factor: self.coarse_factor,
             keep_fraction: self.coarse_keep,
             keep_min: self.coarse_keep_min,
             neighbour_deg: None,
         };
-        let mode = search::SearchMode::from_name(&self.search, c2f).context("--search")?;
+        let mode = match (&self.search, preset) {
+            (Some(name), _) => search::SearchMode::from_name(name, c2f).context("--search")?,
+            (None, search::SearchMode::CoarseToFine(_)) => search::SearchMode::CoarseToFine(c2f),
+            (None, m) => m,
+        };
         let precision = self.precision.parse().context("--precision")?;
         Ok((mode, precision))
     }
@@ -172,10 +248,11 @@ fn load(path: &Path, opts: &ReadOptions, quiet: bool) -> Result<Cloud> {
     Ok(files::load(path, opts, quiet)?.cloud)
 }
 
-fn rotation_set(args: &RegisterArgs) -> Result<RotationSet> {
+/// The rotation set: --rotations-file, else the configuration's, then --dedup.
+fn rotation_set(args: &RegisterArgs, configured: RotationSet) -> Result<RotationSet> {
     let set = match &args.rotations_file {
         Some(f) => RotationSet::from_npy(f)?,
-        None => RotationSet::named(&args.rotations)?,
+        None => configured,
     };
     Ok(match args.dedup {
         Some(tol) if tol >= 0.0 => set.deduplicated(tol.max(DUPLICATE_TOL_DEG)),
@@ -198,56 +275,41 @@ fn progress_bar(len: usize, quiet: bool) -> ProgressBar {
     pb
 }
 
-pub fn run(args: RegisterArgs) -> Result<()> {
-    let t0 = Instant::now();
-    let format = args.io.input.options()?;
-    let method = parse_method(&args.refine)?;
-    let refine_cfg = match method {
-        Some(m) => Some(args.refine_options.config(m, args.threads)?),
-        None => None,
-    };
-    let source = load(&args.source, &format, args.quiet)?;
-    let target = load(&args.target, &format, args.quiet)?;
-    let read_ms = t0.elapsed().as_secs_f64() * 1e3;
-    let set = rotation_set(&args)?;
-    let (voxel, voxel_auto) = match args.voxel {
-        Some(v) => (v, false),
-        None => (
-            search::auto_voxel(&target, AUTO_VOXEL_CELLS)
-                .context("cannot choose a voxel size: the target has zero extent; pass --voxel")?,
-            true,
-        ),
-    };
-    let max_memory = match &args.max_memory {
+/// The pipeline's configuration from the command line.
+fn config(args: &RegisterArgs) -> Result<RegistrationConfig> {
+    let mut cfg = args.pipeline.config(args.threads)?;
+    cfg.rotations = rotation_set(args, cfg.rotations)?;
+    if let Some(v) = args.voxel {
+        cfg.voxel = VoxelSize::Fixed(v);
+    }
+    if let Some(k) = args.top_k {
+        cfg.search.top_k = k;
+    }
+    cfg.search.distinct_radius_deg = args.distinct_radius;
+    cfg.search.max_memory = match &args.max_memory {
         Some(m) => Some(
             ggs::memory::parse_size(m)
                 .with_context(|| format!("--max-memory: cannot read '{m}' (try 2G or 512M)"))?,
         ),
         None => None,
     };
-    let (mode, precision) = args.search.parse()?;
-    let pb = progress_bar(set.len(), args.quiet);
-    let pbc = pb.clone();
-    let cfg = SearchConfig {
-        voxel,
-        threads: args.threads,
-        top_k: args.top_k,
-        distinct_radius_deg: args.distinct_radius,
-        max_memory,
-        progress: Some(Arc::new(move |n| pbc.set_position(n as u64))),
-        cancel: None,
-        mode,
-        precision,
-    };
-    let result = search::coarse_register(&source, &target, &set, &cfg);
-    pb.finish_and_clear();
-    let result = result?;
-    let refined: Option<RefineResult> = match &refine_cfg {
-        Some(c) => Some(refine::refine(&source, &target, &result.transform, c)?),
-        None => None,
-    };
-    let final_t: Rigid = refined.as_ref().map_or(result.transform, |r| r.transform);
+    Ok(cfg)
+}
 
+pub fn run(args: RegisterArgs) -> Result<()> {
+    let t0 = Instant::now();
+    let format = args.io.input.options()?;
+    let mut cfg = config(&args)?;
+    let source = load(&args.source, &format, args.quiet)?;
+    let target = load(&args.target, &format, args.quiet)?;
+    let read_ms = t0.elapsed().as_secs_f64() * 1e3;
+    let pb = progress_bar(cfg.rotations.len(), args.quiet);
+    let pbc = pb.clone();
+    cfg.search.progress = Some(Arc::new(move |n| pbc.set_position(n as u64)));
+    let result = pipeline::register(&source, &target, &cfg);
+    pb.finish_and_clear();
+    let reg = result?;
+    let final_t = reg.transform;
     write_outputs(&args.io, &source, &final_t)?;
     if let Some(path) = &args.overlay {
         let moved: Vec<Point> = source.transformed(&final_t).points;
@@ -258,50 +320,70 @@ pub fn run(args: RegisterArgs) -> Result<()> {
         ply::write_ply(path, &pts, Some(&colors), Default::default())?;
     }
     let total_ms = t0.elapsed().as_secs_f64() * 1e3;
+    if !args.quiet {
+        for w in &reg.warnings {
+            eprintln!("warning: {w}");
+        }
+    }
     if args.io.json {
         let out = serde_json::json!({
             "source": args.source,
             "target": args.target,
-            "voxel": voxel,
-            "voxel_auto": voxel_auto,
+            "preset": args.pipeline.preset,
+            "voxel": reg.voxel,
+            "voxel_auto": reg.voxel_auto,
             "transform": final_t.to_rows(),
-            "coarse_transform": result.transform.to_rows(),
-            "result": result,
-            "refine": refined,
+            "coarse_transform": reg.coarse_transform.to_rows(),
+            "chosen_rank": reg.chosen_rank,
+            "confidence": reg.confidence,
+            "ambiguous": reg.ambiguous,
+            "warnings": reg.warnings,
+            "result": reg.search,
+            "verification": reg.verification,
+            "refine": reg.refine,
+            "timings": reg.timings,
             "read_ms": read_ms,
             "total_ms": total_ms,
         });
         outln!("{}", serde_json::to_string_pretty(&out)?);
     } else {
         out!("{}", final_t.to_text());
-        print_summary(&result, voxel_auto, read_ms, total_ms)?;
-        if let Some(r) = &refined {
+        print_summary(&reg, &args.pipeline.preset, read_ms, total_ms)?;
+        if let Some(r) = &reg.refine {
             print_report(r)?;
         }
         if args.timings {
-            print_timings(&result, refined.as_ref(), read_ms, total_ms)?;
+            print_timings(&reg, read_ms, total_ms)?;
         }
     }
     Ok(())
 }
 
-fn print_summary(r: &SearchResult, voxel_auto: bool, read_ms: f64, total_ms: f64) -> Result<()> {
+fn print_summary(reg: &Registration, preset: &str, read_ms: f64, total_ms: f64) -> Result<()> {
+    let r = &reg.search;
     let g = &r.geometry;
     outln!();
     outln!(
         "voxel       {}{}",
         r.voxel,
-        if voxel_auto {
+        if reg.voxel_auto {
             format!(" (auto: target's longest side / {AUTO_VOXEL_CELLS}; set --voxel to choose)")
         } else {
             String::new()
         }
     );
     outln!(
-        "rotation    #{} of {} ({}), score {} (match {} = 5·n11 − n01)",
-        r.rotation_index,
+        "search      preset {preset}: {} rotations ({}), {}",
         r.rotations,
         r.rotation_set,
+        match r.mode {
+            search::SearchMode::Exhaustive => "exhaustive",
+            search::SearchMode::CoarseToFine(_) => "coarse-to-fine",
+        }
+    );
+    outln!(
+        "rotation    #{} (coarse winner), score {} (match {} = 5·n11 − n01)",
+        r.rotation_index,
         r.score,
         r.match_score
     );
@@ -314,14 +396,28 @@ fn print_summary(r: &SearchResult, voxel_auto: bool, read_ms: f64, total_ms: f64
         ),
         _ => outln!("ambiguity   n/a"),
     }
-    for (i, h) in r.hypotheses.iter().enumerate().skip(1) {
-        outln!(
-            "hypothesis  {}: rotation #{} match {}",
-            i + 1,
-            h.rotation_index,
-            h.match_score
-        );
+    match &reg.verification {
+        Some(v) => print_verification(v)?,
+        None => {
+            for (i, h) in r.hypotheses.iter().enumerate().skip(1) {
+                outln!(
+                    "hypothesis  {}: rotation #{} match {}",
+                    i + 1,
+                    h.rotation_index,
+                    h.match_score
+                );
+            }
+        }
     }
+    outln!(
+        "confidence  {:.3}{}",
+        reg.confidence,
+        if reg.ambiguous {
+            " AMBIGUOUS: two distinct poses explain the data about equally well"
+        } else {
+            ""
+        }
+    );
     outln!(
         "grids       target {}×{}×{} ({} occupied), source ≤ {}×{}×{}, FFT {}×{}×{}",
         g.kernel_dims[0],
@@ -342,21 +438,49 @@ fn print_summary(r: &SearchResult, voxel_auto: bool, read_ms: f64, total_ms: f64
             c.voxel, c.source_points, f[0], f[1], f[2], c.kept, r.rotations, c.rounds, c.winner_rank, c.neighbour_deg, r.scored
         );
     }
-    let t = &r.timings;
+    let t = &reg.timings;
     outln!(
-        "time        {:.0} ms total: read {:.0}, target {:.0}, extents {:.0}, search {:.0} ms on {} thread(s)",
-        total_ms, read_ms, t.target_ms, t.extents_ms, t.search_ms, r.threads
+        "time        {:.0} ms total: read {:.0}, search {:.0}, verify {:.0}, refine {:.0} ms on {} thread(s)",
+        total_ms, read_ms, t.search_ms, t.verify_ms, t.refine_ms, r.threads
     );
     Ok(())
 }
 
+/// One line per verified hypothesis, the chosen one marked.
+fn print_verification(v: &Verification) -> Result<()> {
+    outln!(
+        "verified    {} hypothesis(es) at D = {:.4} (score = mean of both fitnesses within D):",
+        v.hypotheses.len(),
+        v.distance
+    );
+    for (k, h) in v.hypotheses.iter().enumerate() {
+        let mark = if k == v.chosen {
+            " ← chosen"
+        } else if Some(k) == v.runner_up {
+            " (runner-up)"
+        } else {
+            ""
+        };
+        outln!(
+            "  #{} rotation {} match {} → {} after polish, score {:.3} (source {:.3}, target {:.3}), {} ICP iterations{}{}",
+            h.rank + 1,
+            h.rotation_index,
+            h.match_score,
+            h.polished_match_score,
+            h.evidence.score,
+            h.evidence.fitness_source,
+            h.evidence.fitness_target,
+            h.iterations,
+            if h.rejected_early { ", rejected early" } else { "" },
+            mark
+        );
+    }
+    Ok(())
+}
+
 /// The per-stage split of `ggs register --timings`.
-fn print_timings(
-    r: &SearchResult,
-    refined: Option<&RefineResult>,
-    read_ms: f64,
-    total_ms: f64,
-) -> Result<()> {
+fn print_timings(reg: &Registration, read_ms: f64, total_ms: f64) -> Result<()> {
+    let r = &reg.search;
     let t = &r.timings;
     let cpu = t.cpu_voxelize_ms + t.cpu_forward_ms + t.cpu_product_ms + t.cpu_inverse_ms;
     let pct = |v: f64| if cpu > 0.0 { 100.0 * v / cpu } else { 0.0 };
@@ -401,7 +525,11 @@ fn print_timings(
             r.fft_gflop / ((t.search_ms + t.coarse_level_ms) * 1e-3)
         );
     }
-    if let Some(f) = refined {
+    outln!(
+        "verify (polish, ICP, scores)    {:>10.1}",
+        reg.timings.verify_ms
+    );
+    if let Some(f) = &reg.refine {
         outln!(
             "refine (setup {:.1})              {:>10.1}",
             f.setup_ms,

@@ -31,6 +31,7 @@ pub mod io;
 pub mod manifest;
 pub mod memory;
 pub mod metrics;
+pub mod pipeline;
 pub mod refine;
 pub mod rotated;
 pub mod rotations;

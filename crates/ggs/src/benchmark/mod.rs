@@ -5,6 +5,7 @@
 //! - [`row`]: one pair's result ([`PairRow`]) and the resumable CSV file;
 //! - [`report`]: recall, mean errors, the Markdown table and the recall curves (SVG).
 
+pub mod motion;
 pub mod protocol;
 pub mod report;
 pub mod row;
@@ -12,9 +13,7 @@ pub mod row;
 use crate::cloud::Cloud;
 use crate::error::{GgsError, Result};
 use crate::metrics::{is_success, rre, rte};
-use crate::refine::{refine, RefineConfig};
-use crate::rotations::RotationSet;
-use crate::search::{coarse_register, SearchConfig};
+use crate::pipeline::{register, Registration, RegistrationConfig, VoxelSize};
 use crate::transform::Rigid;
 pub use protocol::Protocol;
 pub use row::PairRow;
@@ -129,18 +128,16 @@ pub fn missing_files(pairs: &[BenchPair], first: usize) -> (usize, Vec<PathBuf>)
 pub struct RunConfig {
     /// Forced voxel size; otherwise the pair's, otherwise the protocol's.
     pub voxel: Option<f64>,
-    pub rotations: RotationSet,
-    /// `None`: coarse search only.
-    pub refine: Option<RefineConfig>,
-    pub threads: usize,
+    /// The registration pipeline; its voxel is set per pair.
+    pub pipeline: RegistrationConfig,
     pub max_rre_deg: f64,
     /// `None`: 3 × the pair's voxel.
     pub max_rte: Option<f64>,
     /// Used when neither `voxel` nor the pair gives one.
     pub default_voxel: Option<f64>,
-    /// Exhaustive or coarse-to-fine search.
-    pub mode: crate::search::SearchMode,
-    pub precision: crate::search::Precision,
+    /// Move every source by a random rigid motion drawn from this seed and the pair's id
+    /// ([`motion::random_motion`]), composing the ground truth with it.
+    pub motion_seed: Option<u64>,
 }
 
 /// Register one pair and score it. Errors reading or registering the pair are recorded in
@@ -154,38 +151,20 @@ pub fn run_pair(pair: &BenchPair, cfg: &RunConfig) -> PairRow {
         row.voxel = voxel;
         row.max_rte = cfg.max_rte.unwrap_or(3.0 * voxel);
         row.max_rre_deg = cfg.max_rre_deg;
-        let (source, target) = (pair.source.load()?, pair.target.load()?);
+        let (mut source, target) = (pair.source.load()?, pair.target.load()?);
+        let mut truth = pair.ground_truth;
+        if let Some(seed) = cfg.motion_seed {
+            let m = motion::random_motion(seed, &pair.id, &source);
+            source = source.transformed(&m);
+            truth = truth.compose(&m.inverse());
+        }
         row.source_points = source.len();
         row.target_points = target.len();
         row.read_ms = t0.elapsed().as_secs_f64() * 1e3;
-        let mut search = SearchConfig::with_voxel(voxel);
-        search.threads = cfg.threads;
-        search.mode = cfg.mode;
-        search.precision = cfg.precision;
-        let coarse = coarse_register(&source, &target, &cfg.rotations, &search)?;
-        row.coarse_ms = coarse.timings.total_ms;
-        row.score = coarse.score;
-        row.ambiguity = coarse.ambiguity;
-        row.coarse_rre = rre(&coarse.transform, &pair.ground_truth);
-        row.coarse_rte = rte(&coarse.transform, &pair.ground_truth);
-        let mut t = coarse.transform;
-        if let Some(rc) = &cfg.refine {
-            let mut rc = *rc;
-            rc.threads = cfg.threads;
-            let r = refine(&source, &target, &coarse.transform, &rc)?;
-            row.refine_ms = r.total_ms;
-            row.fitness_source = Some(r.report.fitness_source);
-            row.fitness_target = Some(r.report.fitness_target);
-            row.inlier_rmse = Some(r.report.inlier_rmse);
-            row.iterations = Some(r.report.iterations);
-            row.converged = Some(r.report.converged);
-            row.degenerate = Some(r.report.degenerate);
-            t = r.transform;
-        }
-        row.rre = rre(&t, &pair.ground_truth);
-        row.rte = rte(&t, &pair.ground_truth);
-        row.success = is_success(row.rre, row.rte, row.max_rre_deg, row.max_rte);
-        row.transform = t.to_rows().concat();
+        let mut pc = cfg.pipeline.clone();
+        pc.voxel = VoxelSize::Fixed(voxel);
+        let reg = register(&source, &target, &pc)?;
+        fill_row(&mut row, &reg, &truth);
         Ok(())
     })();
     if let Err(e) = result {
@@ -194,6 +173,37 @@ pub fn run_pair(pair: &BenchPair, cfg: &RunConfig) -> PairRow {
     }
     row.total_ms = t0.elapsed().as_secs_f64() * 1e3;
     row
+}
+
+/// The row's results from a registration, scored against `truth`.
+fn fill_row(row: &mut PairRow, reg: &Registration, truth: &Rigid) {
+    row.coarse_ms = reg.timings.search_ms;
+    row.verify_ms = reg.timings.verify_ms;
+    row.refine_ms = reg.timings.refine_ms;
+    row.score = reg.search.score;
+    row.ambiguity = reg.search.ambiguity;
+    row.coarse_rre = rre(&reg.coarse_transform, truth);
+    row.coarse_rte = rte(&reg.coarse_transform, truth);
+    if let Some(r) = &reg.refine {
+        row.fitness_source = Some(r.report.fitness_source);
+        row.fitness_target = Some(r.report.fitness_target);
+        row.inlier_rmse = Some(r.report.inlier_rmse);
+        row.iterations = Some(r.report.iterations);
+        row.converged = Some(r.report.converged);
+        row.degenerate = Some(r.report.degenerate);
+    }
+    if let Some(v) = &reg.verification {
+        row.chosen_rank = Some(reg.chosen_rank);
+        row.verified = Some(v.hypotheses.len());
+        row.verify_score = Some(v.hypotheses[v.chosen].evidence.score);
+        row.runner_up_score = v.runner_up.map(|k| v.hypotheses[k].evidence.score);
+    }
+    row.confidence = reg.confidence;
+    row.ambiguous = reg.ambiguous;
+    row.rre = rre(&reg.transform, truth);
+    row.rte = rte(&reg.transform, truth);
+    row.success = is_success(row.rre, row.rte, row.max_rre_deg, row.max_rte);
+    row.transform = reg.transform.to_rows().concat();
 }
 
 /// What a finished run wrote and measured.

@@ -52,8 +52,11 @@ pub struct Defaults {
     pub max_rre_deg: f64,
     /// Success threshold on RTE in the clouds' units; `None`: `3 ×` the pair's voxel.
     pub max_rte: Option<f64>,
-    /// Rotation set name.
-    pub rotations: &'static str,
+    /// The rotation set of `--preset paper` for this protocol: the GGS paper's `limited15`,
+    /// except FAUST-partial, whose rotations span ±180° and need a full-SO(3) set. Every
+    /// protocol otherwise runs the default pipeline (full SO(3), verified hypotheses): ggs's
+    /// best with no initial guess.
+    pub paper_rotations: &'static str,
 }
 
 impl Protocol {
@@ -95,11 +98,11 @@ impl Protocol {
     /// FAUST-partial needs a full SO(3) set (its rotations span ±180°). A generic manifest
     /// succeeds within 10° and 3 voxels of the pair's own voxel size.
     pub fn defaults(&self) -> Defaults {
-        let d = |voxel, r, t, rotations| Defaults {
+        let d = |voxel, r, t, paper_rotations| Defaults {
             voxel: Some(voxel),
             max_rre_deg: r,
             max_rte: Some(t),
-            rotations,
+            paper_rotations,
         };
         match self {
             Protocol::ThreeDMatch => d(0.06, 15.0, 0.30, "limited15"),
@@ -110,7 +113,7 @@ impl Protocol {
                 voxel: None,
                 max_rre_deg: 10.0,
                 max_rte: None,
-                rotations: "limited15",
+                paper_rotations: "limited15",
             },
         }
     }

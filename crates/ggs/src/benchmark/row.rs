@@ -41,10 +41,21 @@ pub struct PairRow {
     pub iterations: Option<usize>,
     pub converged: Option<bool>,
     pub degenerate: Option<bool>,
+    /// Rank of the chosen coarse hypothesis (0: the coarse winner) and how many were verified
+    /// (absent without verification).
+    pub chosen_rank: Option<usize>,
+    pub verified: Option<usize>,
+    /// The pipeline's confidence in [0, 1] and its ambiguity flag.
+    pub confidence: f64,
+    pub ambiguous: bool,
+    /// Verification score of the chosen pose and of the best distinct runner-up.
+    pub verify_score: Option<f64>,
+    pub runner_up_score: Option<f64>,
     /// The estimate, 16 numbers row-major (empty when the pair failed).
     pub transform: Vec<f64>,
     pub read_ms: f64,
     pub coarse_ms: f64,
+    pub verify_ms: f64,
     pub refine_ms: f64,
     pub total_ms: f64,
     /// Why the pair could not be registered.
@@ -73,16 +84,23 @@ pub const COLUMNS: [&str; N] = [
     "iterations",
     "converged",
     "degenerate",
+    "chosen_rank",
+    "verified",
+    "confidence",
+    "ambiguous",
+    "verify_score",
+    "runner_up_score",
     "transform",
     "read_ms",
     "coarse_ms",
+    "verify_ms",
     "refine_ms",
     "total_ms",
     "error",
 ];
 
 /// The number of columns.
-const N: usize = 26;
+const N: usize = 33;
 
 impl PairRow {
     /// An empty row for a pair (errors NaN until measured).
@@ -108,9 +126,16 @@ impl PairRow {
             iterations: None,
             converged: None,
             degenerate: None,
+            chosen_rank: None,
+            verified: None,
+            confidence: f64::NAN,
+            ambiguous: false,
+            verify_score: None,
+            runner_up_score: None,
             transform: Vec::new(),
             read_ms: 0.0,
             coarse_ms: 0.0,
+            verify_ms: 0.0,
             refine_ms: 0.0,
             total_ms: 0.0,
             error: None,
@@ -143,6 +168,12 @@ impl PairRow {
             opt(&self.iterations),
             opt(&self.converged),
             opt(&self.degenerate),
+            opt(&self.chosen_rank),
+            opt(&self.verified),
+            self.confidence.to_string(),
+            self.ambiguous.to_string(),
+            opt(&self.verify_score),
+            opt(&self.runner_up_score),
             self.transform
                 .iter()
                 .map(f64::to_string)
@@ -150,6 +181,7 @@ impl PairRow {
                 .join(" "),
             self.read_ms.to_string(),
             self.coarse_ms.to_string(),
+            self.verify_ms.to_string(),
             self.refine_ms.to_string(),
             self.total_ms.to_string(),
             // One line per row, whatever the message.
@@ -182,14 +214,15 @@ impl PairRow {
                 p(f, k).map(Some)
             }
         }
-        let transform = if f[20].is_empty() {
+        const TRANSFORM: usize = 26;
+        let transform = if f[TRANSFORM].is_empty() {
             Vec::new()
         } else {
-            f[20]
+            f[TRANSFORM]
                 .split(' ')
                 .map(|s| s.parse::<f64>())
                 .collect::<std::result::Result<Vec<_>, _>>()
-                .map_err(|_| format!("column 'transform': cannot read '{}'", f[20]))?
+                .map_err(|_| format!("column 'transform': cannot read '{}'", f[TRANSFORM]))?
         };
         Ok(PairRow {
             id: f[0].clone(),
@@ -212,12 +245,19 @@ impl PairRow {
             iterations: o(&f, 17)?,
             converged: o(&f, 18)?,
             degenerate: o(&f, 19)?,
+            chosen_rank: o(&f, 20)?,
+            verified: o(&f, 21)?,
+            confidence: p(&f, 22)?,
+            ambiguous: p(&f, 23)?,
+            verify_score: o(&f, 24)?,
+            runner_up_score: o(&f, 25)?,
             transform,
-            read_ms: p(&f, 21)?,
-            coarse_ms: p(&f, 22)?,
-            refine_ms: p(&f, 23)?,
-            total_ms: p(&f, 24)?,
-            error: o(&f, 25)?,
+            read_ms: p(&f, 27)?,
+            coarse_ms: p(&f, 28)?,
+            verify_ms: p(&f, 29)?,
+            refine_ms: p(&f, 30)?,
+            total_ms: p(&f, 31)?,
+            error: o(&f, 32)?,
         })
     }
 }
@@ -342,6 +382,12 @@ mod tests {
         r.fitness_source = Some(0.9);
         r.iterations = Some(7);
         r.converged = Some(true);
+        r.chosen_rank = Some(2);
+        r.verified = Some(4);
+        r.confidence = 0.25;
+        r.ambiguous = true;
+        r.verify_score = Some(0.5);
+        r.runner_up_score = Some(0.375);
         r.transform = (0..16).map(|k| k as f64 / 7.0).collect();
         r.total_ms = 12.5;
         r.error = Some("line one\nline two".into());

@@ -1,0 +1,461 @@
+//! The registration pipeline that every front end calls (`ggs register`, `ggs bench`, Python):
+//! voxel size → coarse search → polish and verification of the distinct hypotheses →
+//! refinement of the chosen one.
+//!
+//! ```text
+//! source, target ──► voxel (auto or fixed)
+//!                ──► coarse search over a rotation set (search)       → K distinct hypotheses
+//!                ──► for each kept hypothesis: polish (polish)         → a finer rotation
+//!                                              ICP on thinned clouds and a verification score (verify)
+//!                ──► the best-verified hypothesis, refined at full resolution (refine)
+//! ```
+//!
+//! Two presets ([`Preset`]):
+//! - [`Preset::Default`], for clouds with no initial guess: the full-SO(3) set `hopf15-id`,
+//!   the coarse-to-fine search, the polish, and the verification of every distinct hypothesis
+//!   whose match score is within 75 % of the winner's (at most 8), then GICP;
+//! - [`Preset::Paper`], the configuration of the GGS paper: `limited15` (|α|, |γ| ≤ 90°),
+//!   exhaustive, the single best hypothesis, GICP with the reference parameters.
+//!
+//! The result tells how sure it is: the chosen hypothesis's rank, the verification score of
+//! the best *distinct* runner-up (another pose more than the distinct radius or 3 voxels
+//! away; near-duplicates of the chosen pose agree with it and do not count), a confidence
+//! `1 − runner-up score / chosen score` (without a verified runner-up: `1 −` the coarse
+//! ambiguity), and `ambiguous` when two distinct poses verify within
+//! [`VerifyConfig::ambiguous_ratio`] of each other.
+
+pub mod polish;
+pub mod verify;
+
+use crate::cloud::Cloud;
+use crate::error::{GgsError, Result};
+use crate::refine::{refine, RefineConfig, RefineResult};
+use crate::rotations::{RotationSet, DEFAULT_SET};
+use crate::search::{
+    auto_voxel, coarse_register, CoarseToFine, Hypothesis, SearchConfig, SearchMode, SearchResult,
+};
+use crate::transform::{rotation_angle_deg, Rigid};
+pub use polish::PolishConfig;
+use std::time::Instant;
+pub use verify::{Evidence, VerifyConfig};
+
+/// Voxels along the target's longest side when the voxel size is chosen automatically.
+pub const AUTO_VOXEL_CELLS: usize = 32;
+
+/// Verified poses farther apart than this many voxels in translation are distinct.
+const DISTINCT_TRANSLATION_VOXELS: f64 = 3.0;
+
+/// A verification score below this says the result is probably wrong.
+const LOW_EVIDENCE: f64 = 0.1;
+
+/// How the voxel size is chosen.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub enum VoxelSize {
+    /// The target's longest side / `cells`, rounded to 2 significant digits.
+    Auto { cells: usize },
+    /// A fixed edge length in the clouds' units.
+    Fixed(f64),
+}
+
+impl VoxelSize {
+    /// The voxel edge for `target`, and whether it was chosen automatically.
+    pub fn resolve(&self, target: &Cloud) -> Result<(f64, bool)> {
+        match *self {
+            VoxelSize::Fixed(v) if v.is_finite() && v > 0.0 => Ok((v, false)),
+            VoxelSize::Fixed(v) => Err(GgsError::param(
+                "voxel",
+                format!("must be a positive number, got {v}"),
+            )),
+            VoxelSize::Auto { cells } => auto_voxel(target, cells).map(|v| (v, true)).ok_or_else(
+                || {
+                    GgsError::param(
+                        "voxel",
+                        "cannot choose a voxel size: the target has zero extent; give one",
+                    )
+                },
+            ),
+        }
+    }
+}
+
+/// A named configuration.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Preset {
+    /// ggs's best for clouds with no initial guess (see the module documentation).
+    Default,
+    /// The GGS paper's configuration.
+    Paper,
+}
+
+impl Preset {
+    pub const NAMES: &'static [&'static str] = &["default", "paper"];
+
+    pub fn name(&self) -> &'static str {
+        match self {
+            Preset::Default => "default",
+            Preset::Paper => "paper",
+        }
+    }
+}
+
+impl std::str::FromStr for Preset {
+    type Err = GgsError;
+    fn from_str(s: &str) -> Result<Self> {
+        match s {
+            "default" => Ok(Preset::Default),
+            "paper" => Ok(Preset::Paper),
+            other => Err(GgsError::param(
+                "preset",
+                format!("unknown preset '{other}' (default or paper)"),
+            )),
+        }
+    }
+}
+
+/// Everything a registration needs.
+#[derive(Debug, Clone)]
+pub struct RegistrationConfig {
+    pub voxel: VoxelSize,
+    pub rotations: RotationSet,
+    /// The coarse search. Its `voxel` and `threads` are set from this config's; its `top_k`
+    /// is raised to [`VerifyConfig::max_hypotheses`] when verifying.
+    pub search: SearchConfig,
+    /// Finer rotations around each hypothesis (`None`: the grid's rotation is kept).
+    pub polish: Option<PolishConfig>,
+    /// Verification of the distinct hypotheses (`None`: the coarse winner is taken).
+    pub verify: Option<VerifyConfig>,
+    /// Refinement of the chosen hypothesis at full resolution (`None`: none). Verification
+    /// runs the same estimator (GICP when this is `None`) on thinned clouds.
+    pub refine: Option<RefineConfig>,
+    /// Worker threads of every stage (0: one per core); the result does not depend on it.
+    pub threads: usize,
+}
+
+impl RegistrationConfig {
+    /// The configuration of `preset`, with an automatic voxel size.
+    pub fn preset(preset: Preset) -> Self {
+        let named = |n: &str| RotationSet::named(n).expect("built-in set");
+        let mut search = SearchConfig::with_voxel(f64::NAN);
+        match preset {
+            Preset::Default => {
+                search.mode = SearchMode::CoarseToFine(CoarseToFine::default());
+                RegistrationConfig {
+                    voxel: VoxelSize::Auto {
+                        cells: AUTO_VOXEL_CELLS,
+                    },
+                    rotations: named(DEFAULT_SET),
+                    search,
+                    polish: Some(PolishConfig::default()),
+                    verify: Some(VerifyConfig::default()),
+                    refine: Some(RefineConfig::default()),
+                    threads: 0,
+                }
+            }
+            Preset::Paper => RegistrationConfig {
+                voxel: VoxelSize::Auto {
+                    cells: AUTO_VOXEL_CELLS,
+                },
+                rotations: named("limited15"),
+                search,
+                polish: None,
+                verify: None,
+                refine: Some(RefineConfig::default()),
+                threads: 0,
+            },
+        }
+    }
+}
+
+impl Default for RegistrationConfig {
+    fn default() -> Self {
+        Self::preset(Preset::Default)
+    }
+}
+
+/// One coarse hypothesis after polish and verification.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct VerifiedHypothesis {
+    /// Rank among the coarse search's distinct hypotheses (0: its winner).
+    pub rank: usize,
+    pub rotation_index: usize,
+    /// Coarse match score `5·n11 − n01` at the grid rotation, and after the polish.
+    pub match_score: i64,
+    pub polished_match_score: i64,
+    #[serde(serialize_with = "ser_rigid")]
+    pub coarse_transform: Rigid,
+    /// After the polish and the verification's ICP.
+    #[serde(serialize_with = "ser_rigid")]
+    pub transform: Rigid,
+    pub evidence: Evidence,
+    pub iterations: usize,
+    pub rejected_early: bool,
+}
+
+/// What the verification found.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct Verification {
+    /// The verified hypotheses, in coarse rank order.
+    pub hypotheses: Vec<VerifiedHypothesis>,
+    /// Index into `hypotheses` of the chosen one.
+    pub chosen: usize,
+    /// Index of the best-scoring hypothesis distinct from the chosen one.
+    pub runner_up: Option<usize>,
+    /// The verification distance `D`, cloud units.
+    pub distance: f64,
+    /// ICP cell size of the verification, cloud units.
+    pub cell: f64,
+}
+
+/// Wall times of the stages, milliseconds.
+#[derive(Debug, Clone, Copy, Default, serde::Serialize)]
+pub struct StageTimes {
+    pub search_ms: f64,
+    pub verify_ms: f64,
+    pub refine_ms: f64,
+    pub total_ms: f64,
+}
+
+/// The outcome of [`register`].
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct Registration {
+    /// The final transform, `p_target = T · p_source`.
+    #[serde(serialize_with = "ser_rigid")]
+    pub transform: Rigid,
+    /// The chosen hypothesis's grid transform (before polish and ICP).
+    #[serde(serialize_with = "ser_rigid")]
+    pub coarse_transform: Rigid,
+    pub voxel: f64,
+    pub voxel_auto: bool,
+    /// Rank of the chosen hypothesis among the coarse search's (0: its winner).
+    pub chosen_rank: usize,
+    /// `1 − runner-up / chosen` verification score (or `1 −` the coarse ambiguity), in [0, 1].
+    pub confidence: f64,
+    /// Two distinct poses verify (or, unverified, score) about equally well.
+    pub ambiguous: bool,
+    /// What a user should know: ambiguity, low evidence.
+    pub warnings: Vec<String>,
+    pub search: SearchResult,
+    pub verification: Option<Verification>,
+    pub refine: Option<RefineResult>,
+    pub timings: StageTimes,
+}
+
+fn ser_rigid<S: serde::Serializer>(t: &Rigid, s: S) -> std::result::Result<S::Ok, S::Error> {
+    serde::Serialize::serialize(&t.to_rows(), s)
+}
+
+fn ms(t: Instant) -> f64 {
+    t.elapsed().as_secs_f64() * 1e3
+}
+
+/// Register `source` onto `target` with `cfg` (see the module documentation).
+pub fn register(source: &Cloud, target: &Cloud, cfg: &RegistrationConfig) -> Result<Registration> {
+    let t0 = Instant::now();
+    source.ensure_not_empty("source")?;
+    target.ensure_not_empty("target")?;
+    let (voxel, voxel_auto) = cfg.voxel.resolve(target)?;
+    let mut search = cfg.search.clone();
+    search.voxel = voxel;
+    search.threads = cfg.threads;
+    if let Some(v) = &cfg.verify {
+        search.top_k = search.top_k.max(v.max_hypotheses);
+    }
+    let coarse = coarse_register(source, target, &cfg.rotations, &search)?;
+    let search_ms = ms(t0);
+    let t_verify = Instant::now();
+    let refine_cfg = cfg.refine.map(|r| RefineConfig {
+        threads: cfg.threads,
+        ..r
+    });
+    let verification = match &cfg.verify {
+        Some(v) => Some(verify_hypotheses(
+            source, target, &coarse, &search, cfg, v, &refine_cfg,
+        )?),
+        None => None,
+    };
+    let (start, coarse_transform, chosen_rank) = match &verification {
+        Some(v) => {
+            let h = &v.hypotheses[v.chosen];
+            (h.transform, h.coarse_transform, h.rank)
+        }
+        None => (polished_winner(source, target, &coarse, &search, cfg)?, coarse.transform, 0),
+    };
+    let verify_ms = ms(t_verify);
+    let t_refine = Instant::now();
+    let refined = match &refine_cfg {
+        Some(r) => Some(refine(source, target, &start, r)?),
+        None => None,
+    };
+    let refine_ms = ms(t_refine);
+    let (confidence, ambiguous, warnings) = assess(&coarse, verification.as_ref(), cfg);
+    Ok(Registration {
+        transform: refined.as_ref().map_or(start, |r| r.transform),
+        coarse_transform,
+        voxel,
+        voxel_auto,
+        chosen_rank,
+        confidence,
+        ambiguous,
+        warnings,
+        search: coarse,
+        verification,
+        refine: refined,
+        timings: StageTimes {
+            search_ms,
+            verify_ms,
+            refine_ms,
+            total_ms: ms(t0),
+        },
+    })
+}
+
+/// The coarse winner, polished when the config asks for it (no verification).
+fn polished_winner(
+    source: &Cloud,
+    target: &Cloud,
+    coarse: &SearchResult,
+    search: &SearchConfig,
+    cfg: &RegistrationConfig,
+) -> Result<Rigid> {
+    Ok(match &cfg.polish {
+        Some(p) => {
+            polish::polish(source, target, &coarse.hypotheses[0], cfg.rotations.step_deg, search, p)?
+                .hypothesis
+                .transform
+        }
+        None => coarse.transform,
+    })
+}
+
+/// The hypotheses to verify: the winner and every distinct one whose match score is at
+/// least `margin` × the winner's, at most `max_hypotheses`.
+fn candidates<'a>(coarse: &'a SearchResult, v: &VerifyConfig) -> &'a [Hypothesis] {
+    let best = coarse.hypotheses[0].match_score;
+    let n = coarse
+        .hypotheses
+        .iter()
+        .take(v.max_hypotheses.max(1))
+        .take_while(|h| best > 0 && h.match_score as f64 >= v.margin * best as f64)
+        .count()
+        .max(1);
+    &coarse.hypotheses[..n]
+}
+
+fn verify_hypotheses(
+    source: &Cloud,
+    target: &Cloud,
+    coarse: &SearchResult,
+    search: &SearchConfig,
+    cfg: &RegistrationConfig,
+    v: &VerifyConfig,
+    refine_cfg: &Option<RefineConfig>,
+) -> Result<Verification> {
+    let voxel = coarse.voxel;
+    let verifier = verify::Verifier::new(source, target, voxel, v);
+    let cell = v.cell_voxels * voxel;
+    let thinned = verify::Thinned::new(source, target, cell);
+    let icp = refine_cfg.unwrap_or(RefineConfig {
+        threads: cfg.threads,
+        ..RefineConfig::default()
+    });
+    let mut out: Vec<VerifiedHypothesis> = Vec::new();
+    let mut best = 0.0f64;
+    for (rank, h) in candidates(coarse, v).iter().enumerate() {
+        let polished = match &cfg.polish {
+            Some(p) => polish::polish(source, target, h, cfg.rotations.step_deg, search, p)?.hypothesis,
+            None => *h,
+        };
+        let c = verify::check(&thinned, &verifier, &polished.transform, &icp, v, best)?;
+        best = best.max(c.evidence.score);
+        out.push(VerifiedHypothesis {
+            rank,
+            rotation_index: h.rotation_index,
+            match_score: h.match_score,
+            polished_match_score: polished.match_score,
+            coarse_transform: h.transform,
+            transform: c.transform,
+            evidence: c.evidence,
+            iterations: c.iterations,
+            rejected_early: c.rejected_early,
+        });
+    }
+    // Best score first, ties to the better rank (the first in `out`).
+    let chosen = (0..out.len())
+        .reduce(|a, b| {
+            if out[b].evidence.score > out[a].evidence.score {
+                b
+            } else {
+                a
+            }
+        })
+        .expect("the winner is always verified");
+    let distinct = |a: &Rigid, b: &Rigid| {
+        rotation_angle_deg(&a.rotation, &b.rotation) > coarse.distinct_radius_deg
+            || (a.translation - b.translation).norm() > DISTINCT_TRANSLATION_VOXELS * voxel
+    };
+    let runner_up = (0..out.len())
+        .filter(|&k| distinct(&out[k].transform, &out[chosen].transform))
+        .reduce(|a, b| {
+            if out[b].evidence.score > out[a].evidence.score {
+                b
+            } else {
+                a
+            }
+        });
+    Ok(Verification {
+        hypotheses: out,
+        chosen,
+        runner_up,
+        distance: verifier.distance,
+        cell,
+    })
+}
+
+/// Confidence, the ambiguity flag and the warnings of a result.
+fn assess(
+    coarse: &SearchResult,
+    verification: Option<&Verification>,
+    cfg: &RegistrationConfig,
+) -> (f64, bool, Vec<String>) {
+    let ambiguous_ratio = cfg.verify.unwrap_or_default().ambiguous_ratio;
+    let mut warnings = Vec::new();
+    let verified_ratio = verification.and_then(|v| {
+        let chosen = &v.hypotheses[v.chosen];
+        let best = chosen.evidence.score;
+        if best < LOW_EVIDENCE {
+            warnings.push(format!(
+                "low evidence: only {:.0} % of the points lie within {:.3} of the other cloud after alignment; the result is probably wrong",
+                100.0 * best,
+                v.distance
+            ));
+        }
+        v.runner_up.map(|k| {
+            let r = &v.hypotheses[k];
+            let ratio = if best > 0.0 { r.evidence.score / best } else { 1.0 };
+            if ratio >= ambiguous_ratio {
+                warnings.push(format!(
+                    "ambiguous: coarse hypothesis {} (a pose {:.0}° away) verifies at {:.3} against {:.3} for the chosen one; the data may be symmetric or the overlap too small to decide",
+                    r.rank + 1,
+                    rotation_angle_deg(&r.transform.rotation, &chosen.transform.rotation),
+                    r.evidence.score,
+                    best
+                ));
+            }
+            ratio
+        })
+    });
+    let ratio = verified_ratio.unwrap_or_else(|| {
+        let a = coarse.ambiguity.unwrap_or(0.0).clamp(0.0, 1.0);
+        if verification.is_none() && a >= ambiguous_ratio {
+            warnings.push(format!(
+                "ambiguous: a rotation more than {:.0}° from the winner scores {:.0} % of its match score",
+                coarse.distinct_radius_deg,
+                100.0 * a
+            ));
+        }
+        a
+    });
+    let ratio = ratio.clamp(0.0, 1.0);
+    (1.0 - ratio, ratio >= ambiguous_ratio, warnings)
+}

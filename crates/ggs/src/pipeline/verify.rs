@@ -1,0 +1,252 @@
+//! Hypothesis verification: refine several distinct coarse hypotheses and keep the one that
+//! explains both clouds best at one fixed distance.
+//!
+//! # The verification score
+//! For a pose `T` and a distance `D` (the same for every hypothesis of a pair):
+//!
+//! `f_s = |{p ∈ S : min_q ‖T·p − q‖ ≤ D}| / |S|`, `f_t = |{q ∈ T_gt : min_p ‖T·p − q‖ ≤ D}| / |T_gt|`,
+//! `score = (f_s + f_t) / 2`,
+//!
+//! over the source points `S` and the target points (each an evenly strided sample of at most
+//! [`SAMPLE_POINTS`] points of the full cloud). `D = max(distance_voxels · s, spacing_factor ·
+//! ρ)`, with `s` the voxel size and `ρ` the target's median distance from a point to its
+//! nearest other point: a fraction of the voxel, so that a pose that is only roughly right
+//! scores low, but never below the point spacing, where every pose would score low. The
+//! correspondence distance of each ICP run is not used: it is chosen from the run's own
+//! start, so a wrong start gets a large one and a high fitness.
+//!
+//! # The procedure
+//! Hypotheses are taken in coarse rank order. Each is polished ([`super::polish`]), refined by
+//! GICP on both clouds thinned to one point per cell of `cell_voxels · s` (the
+//! correspondence distance of each run is the reference's 0.25 quantile at its start) for
+//! `check_iterations`, scored, and dropped if its score is below `reject_ratio` times the best
+//! so far (a wrong start stops there); otherwise refined again from where it stopped (the
+//! quantile, taken anew, is smaller: a schedule from a larger distance down) for
+//! `max_iterations − check_iterations` more, and scored. The best score wins; ties go to
+//! the better coarse rank.
+
+use crate::cloud::{Cloud, Point};
+use crate::error::Result;
+use crate::refine::grid::{median_kth_distance, RadiusSearch};
+use crate::refine::neighbors::PointIndex;
+use crate::refine::{refine, RefineConfig};
+use crate::transform::Rigid;
+use crate::voxel::cell_centroids;
+use rayon::prelude::*;
+
+/// At most this many points of each cloud are used to compute a verification score.
+pub const SAMPLE_POINTS: usize = 20_000;
+
+/// Parameters of the verification.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct VerifyConfig {
+    /// Verify every distinct hypothesis whose coarse match score is at least `margin` times
+    /// the winner's (the winner always).
+    pub margin: f64,
+    /// At most this many hypotheses.
+    pub max_hypotheses: usize,
+    /// `D` is at least this many voxels.
+    pub distance_voxels: f64,
+    /// `D` is at least this many target point spacings.
+    pub spacing_factor: f64,
+    /// ICP of the verification runs on clouds thinned to cells of this many voxels.
+    pub cell_voxels: f64,
+    /// ICP iterations before a hypothesis is compared with the best so far.
+    pub check_iterations: usize,
+    /// ICP iterations in all, per hypothesis.
+    pub max_iterations: usize,
+    /// A hypothesis scoring below this fraction of the best so far at the check stops.
+    pub reject_ratio: f64,
+    /// Two distinct poses whose scores are within this ratio make the result ambiguous.
+    pub ambiguous_ratio: f64,
+}
+
+impl Default for VerifyConfig {
+    fn default() -> Self {
+        VerifyConfig {
+            margin: 0.75,
+            max_hypotheses: 8,
+            distance_voxels: 0.3,
+            spacing_factor: 2.0,
+            cell_voxels: 0.5,
+            check_iterations: 10,
+            max_iterations: 30,
+            reject_ratio: 0.6,
+            ambiguous_ratio: 0.9,
+        }
+    }
+}
+
+/// The verification score of one pose (see the module documentation).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct Evidence {
+    /// `f_s`: share of source points within `D` of a target point.
+    pub fitness_source: f64,
+    /// `f_t`: share of target points within `D` of a moved source point.
+    pub fitness_target: f64,
+    /// `(f_s + f_t) / 2`.
+    pub score: f64,
+}
+
+/// Scores poses of one pair at one distance `D`; built once per pair.
+pub struct Verifier {
+    source: Vec<Point>,
+    target: Vec<Point>,
+    in_source: RadiusSearch<'static>,
+    in_target: RadiusSearch<'static>,
+    /// The distance `D`, in cloud units.
+    pub distance: f64,
+}
+
+/// An evenly strided sample of at most `n` points.
+fn strided(points: &[Point], n: usize) -> Vec<Point> {
+    let step = points.len().div_ceil(n).max(1);
+    points.iter().step_by(step).copied().collect()
+}
+
+impl Verifier {
+    /// Index both clouds for queries at `D` (see [`VerifyConfig`]) for voxel `voxel`.
+    pub fn new(source: &Cloud, target: &Cloud, voxel: f64, cfg: &VerifyConfig) -> Self {
+        let tindex = PointIndex::new(&target.points);
+        let spacing = median_kth_distance(&target.points, &tindex, 2).unwrap_or(0.0);
+        let distance = (cfg.distance_voxels * voxel).max(cfg.spacing_factor * spacing);
+        let source = strided(&source.points, SAMPLE_POINTS);
+        let target = strided(&target.points, SAMPLE_POINTS);
+        Verifier {
+            in_source: RadiusSearch::new(&source, distance, None),
+            in_target: RadiusSearch::new(&target, distance, None),
+            source,
+            target,
+            distance,
+        }
+    }
+
+    /// The evidence for `T` (`p_target = T · p_source`).
+    pub fn evidence(&self, t: &Rigid) -> Evidence {
+        let inv = t.inverse();
+        let matched_source: usize = self
+            .source
+            .par_iter()
+            .filter(|p| self.in_target.nearest(&t.apply(p)).is_some())
+            .count();
+        let matched_target: usize = self
+            .target
+            .par_iter()
+            .filter(|q| self.in_source.nearest(&inv.apply(q)).is_some())
+            .count();
+        let fs = matched_source as f64 / self.source.len() as f64;
+        let ft = matched_target as f64 / self.target.len() as f64;
+        Evidence {
+            fitness_source: fs,
+            fitness_target: ft,
+            score: 0.5 * (fs + ft),
+        }
+    }
+}
+
+/// The two clouds thinned for the verification's ICP.
+pub struct Thinned {
+    pub source: Cloud,
+    pub target: Cloud,
+}
+
+impl Thinned {
+    pub fn new(source: &Cloud, target: &Cloud, cell: f64) -> Self {
+        Thinned {
+            source: Cloud::new(cell_centroids(&source.points, cell)),
+            target: Cloud::new(cell_centroids(&target.points, cell)),
+        }
+    }
+}
+
+/// One hypothesis after verification's ICP.
+#[derive(Debug, Clone, Copy)]
+pub struct Checked {
+    pub transform: Rigid,
+    pub evidence: Evidence,
+    /// ICP iterations run.
+    pub iterations: usize,
+    /// Stopped at the check: its score was below `reject_ratio` × the best so far.
+    pub rejected_early: bool,
+}
+
+/// Refine `start` on the thinned clouds and score it, stopping early when it scores below
+/// `reject_ratio × best_so_far` at the check.
+pub fn check(
+    thinned: &Thinned,
+    verifier: &Verifier,
+    start: &Rigid,
+    refine_cfg: &RefineConfig,
+    cfg: &VerifyConfig,
+    best_so_far: f64,
+) -> Result<Checked> {
+    let run = |from: &Rigid, iterations: usize| {
+        let c = RefineConfig {
+            max_iterations: iterations,
+            ..*refine_cfg
+        };
+        refine(&thinned.source, &thinned.target, from, &c)
+    };
+    let first = run(start, cfg.check_iterations)?;
+    let evidence = verifier.evidence(&first.transform);
+    let mut iterations = first.report.iterations;
+    if evidence.score < cfg.reject_ratio * best_so_far || !more_iterations(&first, cfg) {
+        return Ok(Checked {
+            transform: first.transform,
+            evidence,
+            iterations,
+            rejected_early: evidence.score < cfg.reject_ratio * best_so_far,
+        });
+    }
+    let second = run(&first.transform, cfg.max_iterations - cfg.check_iterations)?;
+    iterations += second.report.iterations;
+    Ok(Checked {
+        transform: second.transform,
+        evidence: verifier.evidence(&second.transform),
+        iterations,
+        rejected_early: false,
+    })
+}
+
+/// Whether a second run can change anything: the first hit its cap, and iterations remain.
+fn more_iterations(first: &crate::refine::RefineResult, cfg: &VerifyConfig) -> bool {
+    !first.report.converged && cfg.max_iterations > cfg.check_iterations
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::{Matrix3, Vector3};
+
+    fn plane(n: usize) -> Cloud {
+        Cloud::new(
+            (0..n * n)
+                .map(|i| [(i % n) as f64 * 0.01, (i / n) as f64 * 0.01, 0.0])
+                .collect(),
+        )
+    }
+
+    #[test]
+    fn the_right_pose_scores_one_and_a_shift_beyond_d_scores_less() {
+        let c = plane(50);
+        let v = Verifier::new(&c, &c, 0.05, &VerifyConfig::default());
+        assert!((v.distance - 0.02).abs() < 1e-12, "{}", v.distance);
+        let e = v.evidence(&Rigid::identity());
+        assert_eq!(e.score, 1.0);
+        let shifted = Rigid::new(Matrix3::identity(), Vector3::new(0.25, 0.0, 0.0));
+        let e = v.evidence(&shifted);
+        // After a shift of 0.25, 26 or 27 of the 50 columns lie within D = 0.02 of the other plane.
+        assert!((e.fitness_source - 0.53).abs() < 0.03, "{e:?}");
+        assert!((e.fitness_target - 0.53).abs() < 0.03, "{e:?}");
+        let lifted = Rigid::new(Matrix3::identity(), Vector3::new(0.0, 0.0, 0.021));
+        assert_eq!(v.evidence(&lifted).score, 0.0);
+    }
+
+    #[test]
+    fn the_distance_follows_the_spacing_of_sparse_clouds() {
+        let c = plane(20);
+        let cfg = VerifyConfig::default();
+        let v = Verifier::new(&c, &c, 0.01, &cfg);
+        assert!((v.distance - 2.0 * 0.01).abs() < 1e-12, "{}", v.distance);
+    }
+}
