@@ -5,9 +5,10 @@
 //! search (through the search's cancel flag) and raises `KeyboardInterrupt`.
 
 use ggs::io::{self, Format};
+use ggs::pipeline::{self, Preset, Registration, RegistrationConfig, VoxelSize};
 use ggs::refine::{self, CorrespondenceDistance, Method, RefineConfig, RefineResult, RobustKernel};
 use ggs::rotations::RotationSet;
-use ggs::search::{self, Hypothesis, SearchConfig, SearchResult};
+use ggs::search::{self, Hypothesis, SearchResult};
 use ggs::{Cloud, GgsError, Point, Rigid};
 use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray2, PyUntypedArrayMethods};
 use pyo3::exceptions::{PyOSError, PyRuntimeError, PyValueError};
@@ -17,9 +18,6 @@ use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{mpsc, Arc};
 use std::time::{Duration, Instant};
-
-/// Voxels along the target's longest side when no voxel is given (as `ggs register`).
-const AUTO_VOXEL_CELLS: usize = 32;
 
 fn to_py_err(e: GgsError) -> PyErr {
     match e {
@@ -180,9 +178,15 @@ fn parse_refine(
 #[pyclass(name = "Result", module = "ggs", frozen)]
 struct PyResultObj {
     transform: Rigid,
-    coarse: Option<SearchResult>,
+    registration: Option<Registration>,
     refined: Option<RefineResult>,
     total_ms: f64,
+}
+
+impl PyResultObj {
+    fn coarse(&self) -> Option<&SearchResult> {
+        self.registration.as_ref().map(|r| &r.search)
+    }
 }
 
 fn hypothesis_dict<'py>(py: Python<'py>, h: &Hypothesis) -> PyResult<Bound<'py, PyDict>> {
@@ -203,12 +207,12 @@ impl PyResultObj {
         matrix_array(py, &self.transform)
     }
 
-    /// The coarse search's transform (None after `refine`).
+    /// The chosen hypothesis's grid transform, before polish and ICP (None after `refine`).
     #[getter]
     fn coarse_transformation<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyAny>>> {
-        self.coarse
+        self.registration
             .as_ref()
-            .map(|c| matrix_array(py, &c.transform))
+            .map(|r| matrix_array(py, &r.coarse_transform))
             .transpose()
     }
 
@@ -235,26 +239,26 @@ impl PyResultObj {
     /// The coarse search's exact integer score (None after `refine`).
     #[getter]
     fn score(&self) -> Option<i64> {
-        self.coarse.as_ref().map(|c| c.score)
+        self.coarse().map(|c| c.score)
     }
 
     /// Runner-up match score / best match score, over rotations more than the distinct
     /// radius away (near 1: ambiguous). None if there is no runner-up.
     #[getter]
     fn ambiguity(&self) -> Option<f64> {
-        self.coarse.as_ref().and_then(|c| c.ambiguity)
+        self.coarse().and_then(|c| c.ambiguity)
     }
 
     /// Index of the best rotation in the rotation set.
     #[getter]
     fn rotation_index(&self) -> Option<usize> {
-        self.coarse.as_ref().map(|c| c.rotation_index)
+        self.coarse().map(|c| c.rotation_index)
     }
 
     /// The voxel size used by the coarse search.
     #[getter]
     fn voxel(&self) -> Option<f64> {
-        self.coarse.as_ref().map(|c| c.voxel)
+        self.coarse().map(|c| c.voxel)
     }
 
     /// Whether the refinement converged (None without refinement).
@@ -267,12 +271,13 @@ impl PyResultObj {
     #[getter]
     fn timings<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let d = PyDict::new(py);
-        if let Some(c) = &self.coarse {
-            let t = &c.timings;
+        if let Some(r) = &self.registration {
+            let t = &r.search.timings;
             d.set_item("coarse_ms", t.total_ms)?;
             d.set_item("target_ms", t.target_ms)?;
             d.set_item("extents_ms", t.extents_ms)?;
             d.set_item("search_ms", t.search_ms)?;
+            d.set_item("verify_ms", r.timings.verify_ms)?;
         }
         if let Some(r) = &self.refined {
             d.set_item("refine_ms", r.total_ms)?;
@@ -281,12 +286,70 @@ impl PyResultObj {
         Ok(d)
     }
 
-    /// The best distinct hypotheses of the coarse search (`top_k` of them), best first: dicts
+    /// How sure the result is, in [0, 1]: 1 − (verification score of the best distinct
+    /// runner-up) / (the chosen one's); without a verified runner-up, 1 − the coarse ambiguity.
+    /// None after `refine`.
+    #[getter]
+    fn confidence(&self) -> Option<f64> {
+        self.registration.as_ref().map(|r| r.confidence)
+    }
+
+    /// True when two distinct poses explain the data about equally well (symmetric data,
+    /// small overlap): the answer may be the wrong one of them.
+    #[getter]
+    fn ambiguous(&self) -> Option<bool> {
+        self.registration.as_ref().map(|r| r.ambiguous)
+    }
+
+    /// Warnings of the registration (ambiguity, low evidence); also issued as Python warnings.
+    #[getter]
+    fn warnings(&self) -> Vec<String> {
+        self.registration
+            .as_ref()
+            .map_or_else(Vec::new, |r| r.warnings.clone())
+    }
+
+    /// Rank of the chosen coarse hypothesis (0: the coarse winner); None after `refine`.
+    #[getter]
+    fn chosen_rank(&self) -> Option<usize> {
+        self.registration.as_ref().map(|r| r.chosen_rank)
+    }
+
+    /// The verified hypotheses in coarse rank order: dicts with rank, rotation_index,
+    /// match_score, polished_match_score, score, fitness_source, fitness_target, iterations,
+    /// rejected_early, chosen, runner_up, coarse_transformation and transformation.
+    #[getter]
+    fn verified<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
+        let list = PyList::empty(py);
+        let Some(v) = self.registration.as_ref().and_then(|r| r.verification.as_ref()) else {
+            return Ok(list);
+        };
+        for (k, h) in v.hypotheses.iter().enumerate() {
+            let d = PyDict::new(py);
+            d.set_item("rank", h.rank)?;
+            d.set_item("rotation_index", h.rotation_index)?;
+            d.set_item("match_score", h.match_score)?;
+            d.set_item("polished_match_score", h.polished_match_score)?;
+            d.set_item("score", h.evidence.score)?;
+            d.set_item("fitness_source", h.evidence.fitness_source)?;
+            d.set_item("fitness_target", h.evidence.fitness_target)?;
+            d.set_item("iterations", h.iterations)?;
+            d.set_item("rejected_early", h.rejected_early)?;
+            d.set_item("chosen", k == v.chosen)?;
+            d.set_item("runner_up", Some(k) == v.runner_up)?;
+            d.set_item("coarse_transformation", matrix_array(py, &h.coarse_transform)?)?;
+            d.set_item("transformation", matrix_array(py, &h.transform)?)?;
+            list.append(d)?;
+        }
+        Ok(list)
+    }
+
+    /// The best distinct hypotheses of the coarse search, best first: dicts
     /// with rotation_index, score, match_score, offset and transformation.
     #[getter]
     fn hypotheses<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
         let list = PyList::empty(py);
-        if let Some(c) = &self.coarse {
+        if let Some(c) = self.coarse() {
             for h in &c.hypotheses {
                 list.append(hypothesis_dict(py, h)?)?;
             }
@@ -326,12 +389,19 @@ impl PyResultObj {
             .map(|r| format!("[{:.6}, {:.6}, {:.6}, {:.6}]", r[0], r[1], r[2], r[3]))
             .collect();
         let mut s = String::from("ggs.Result(");
-        if let Some(c) = &self.coarse {
+        if let Some(c) = self.coarse() {
             s += &format!(
                 "rotation_index={}, score={}, ambiguity={}, ",
                 c.rotation_index,
                 c.score,
                 c.ambiguity.map_or("None".into(), |a| format!("{a:.3}"))
+            );
+        }
+        if let Some(r) = &self.registration {
+            s += &format!(
+                "confidence={:.3}, ambiguous={}, ",
+                r.confidence,
+                if r.ambiguous { "True" } else { "False" }
             );
         }
         if let Some(r) = &self.refined {
@@ -349,72 +419,117 @@ impl PyResultObj {
     }
 }
 
-/// Register `source` onto `target`: coarse grid search, then refinement.
+/// The pipeline configuration of `register`'s arguments.
+#[allow(clippy::too_many_arguments)]
+fn pipeline_config(
+    voxel: Option<f64>,
+    preset: &str,
+    rotations: Option<&str>,
+    refine: Option<&str>,
+    threads: usize,
+    top_k: Option<usize>,
+    search: Option<&str>,
+    precision: &str,
+    max_hypotheses: Option<usize>,
+    verify: bool,
+    polish: bool,
+) -> PyResult<RegistrationConfig> {
+    let value_err = |e: GgsError| PyValueError::new_err(e.to_string());
+    let preset: Preset = preset.parse().map_err(value_err)?;
+    let mut cfg = RegistrationConfig::preset(preset);
+    cfg.threads = threads;
+    if let Some(v) = voxel {
+        cfg.voxel = VoxelSize::Fixed(v);
+    }
+    if let Some(name) = rotations {
+        cfg.rotations = RotationSet::named(name).map_err(to_py_err)?;
+    }
+    if let Some(name) = search {
+        cfg.search.mode = search::SearchMode::from_name(name, search::CoarseToFine::default())
+            .map_err(value_err)?;
+    }
+    cfg.search.precision = precision.parse().map_err(value_err)?;
+    if let Some(k) = top_k {
+        if k == 0 {
+            return Err(PyValueError::new_err("top_k must be at least 1"));
+        }
+        cfg.search.top_k = k;
+    }
+    if !verify {
+        cfg.verify = None;
+    }
+    match (&mut cfg.verify, max_hypotheses) {
+        (_, Some(0)) => return Err(PyValueError::new_err("max_hypotheses must be at least 1")),
+        (Some(v), Some(n)) => v.max_hypotheses = n,
+        (None, Some(_)) => {
+            return Err(PyValueError::new_err(
+                "max_hypotheses needs verification (not with verify=False or preset='paper')",
+            ))
+        }
+        _ => {}
+    }
+    if !polish {
+        cfg.polish = None;
+    }
+    if let Some(method) = refine {
+        cfg.refine = parse_refine(method, None, 0.25, 500, 20, threads)?;
+    }
+    Ok(cfg)
+}
+
+/// Register `source` onto `target` with no initial guess: coarse grid search over a rotation
+/// set, polish and verification of the distinct hypotheses, refinement of the best.
 #[pyfunction]
-#[pyo3(signature = (source, target, voxel=None, rotations="limited15", refine="gicp", threads=None, top_k=1, search="exhaustive", precision="mixed"))]
+#[pyo3(signature = (source, target, voxel=None, *, preset="default", rotations=None, refine=None, threads=None, top_k=None, search=None, precision="mixed", max_hypotheses=None, verify=true, polish=true))]
 #[allow(clippy::too_many_arguments)]
 fn register(
     py: Python<'_>,
     source: &Bound<'_, PyAny>,
     target: &Bound<'_, PyAny>,
     voxel: Option<f64>,
-    rotations: &str,
-    refine: &str,
+    preset: &str,
+    rotations: Option<&str>,
+    refine: Option<&str>,
     threads: Option<usize>,
-    top_k: usize,
-    search: &str,
+    top_k: Option<usize>,
+    search: Option<&str>,
     precision: &str,
+    max_hypotheses: Option<usize>,
+    verify: bool,
+    polish: bool,
 ) -> PyResult<PyResultObj> {
     let t0 = Instant::now();
     let source = Cloud::new(points_of("source", source)?);
     let target = Cloud::new(points_of("target", target)?);
-    let threads = threads.unwrap_or(0);
-    if top_k == 0 {
-        return Err(PyValueError::new_err("top_k must be at least 1"));
-    }
-    let set = RotationSet::named(rotations).map_err(to_py_err)?;
-    let voxel = match voxel {
-        Some(v) if v.is_finite() && v > 0.0 => v,
-        Some(v) => {
-            return Err(PyValueError::new_err(format!(
-                "voxel must be positive, got {v}"
-            )))
-        }
-        None => search::auto_voxel(&target, AUTO_VOXEL_CELLS).ok_or_else(|| {
-            PyValueError::new_err("cannot choose a voxel size: the target has zero extent")
-        })?,
-    };
-    let refine_cfg = parse_refine(refine, None, 0.25, 500, 20, threads)?;
-    let mode = search::SearchMode::from_name(search, search::CoarseToFine::default())
-        .map_err(|e| PyValueError::new_err(e.to_string()))?;
-    let precision: search::Precision = precision
-        .parse()
-        .map_err(|e: ggs::GgsError| PyValueError::new_err(e.to_string()))?;
-    let cancel = Arc::new(AtomicBool::new(false));
-    let cfg = SearchConfig {
+    let mut cfg = pipeline_config(
         voxel,
-        threads,
+        preset,
+        rotations,
+        refine,
+        threads.unwrap_or(0),
         top_k,
-        distinct_radius_deg: None,
-        max_memory: None,
-        progress: None,
-        cancel: Some(cancel.clone()),
-        mode,
+        search,
         precision,
-    };
-    let outcome = run_interruptible(py, &cancel, || -> ggs::Result<_> {
-        let coarse = search::coarse_register(&source, &target, &set, &cfg)?;
-        let refined = match &refine_cfg {
-            Some(c) => Some(refine::refine(&source, &target, &coarse.transform, c)?),
-            None => None,
-        };
-        Ok((coarse, refined))
-    })?;
-    let (coarse, refined) = outcome.map_err(to_py_err)?;
+        max_hypotheses,
+        verify,
+        polish,
+    )?;
+    let cancel = Arc::new(AtomicBool::new(false));
+    cfg.search.cancel = Some(cancel.clone());
+    let reg = run_interruptible(py, &cancel, || pipeline::register(&source, &target, &cfg))?
+        .map_err(to_py_err)?;
+    for w in &reg.warnings {
+        PyErr::warn(
+            py,
+            &py.get_type::<pyo3::exceptions::PyUserWarning>(),
+            &std::ffi::CString::new(format!("ggs: {w}")).expect("no NUL in warnings"),
+            1,
+        )?;
+    }
     Ok(PyResultObj {
-        transform: refined.as_ref().map_or(coarse.transform, |r| r.transform),
-        coarse: Some(coarse),
-        refined,
+        transform: reg.transform,
+        refined: reg.refine.clone(),
+        registration: Some(reg),
         total_ms: t0.elapsed().as_secs_f64() * 1e3,
     })
 }
@@ -455,7 +570,7 @@ fn refine_py(
     .map_err(to_py_err)?;
     Ok(PyResultObj {
         transform: r.transform,
-        coarse: None,
+        registration: None,
         refined: Some(r),
         total_ms: t0.elapsed().as_secs_f64() * 1e3,
     })
@@ -563,6 +678,7 @@ fn _ggs(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(rre, m)?)?;
     m.add_function(wrap_pyfunction!(rte, m)?)?;
     m.add("ROTATION_SETS", ggs::rotations::NAMES.to_vec())?;
+    m.add("PRESETS", Preset::NAMES.to_vec())?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

@@ -166,7 +166,10 @@ pub struct SearchArgs {
 
 impl SearchArgs {
     /// The search mode (the preset's `mode` unless --search is given) and precision.
-    pub fn parse(&self, preset: search::SearchMode) -> Result<(search::SearchMode, search::Precision)> {
+    pub fn parse(
+        &self,
+        preset: search::SearchMode,
+    ) -> Result<(search::SearchMode, search::Precision)> {
         let c2f = search::CoarseToFine {
             factor: self.coarse_factor,
             keep_fraction: self.coarse_keep,

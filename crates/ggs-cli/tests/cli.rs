@@ -107,9 +107,17 @@ fn json_output_and_files() {
     );
     let j: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(j["result"]["hypotheses"].as_array().unwrap().len(), 3);
-    assert_eq!(j["result"]["rotations"], 1886);
+    assert_eq!(j["result"]["rotations"], 6360);
+    assert_eq!(j["result"]["rotation_set"], "hopf15-id");
     assert_eq!(j["result"]["threads"], 2);
-    assert!(j["result"]["timings"]["search_ms"].as_f64().unwrap() > 0.0);
+    assert_eq!(j["preset"], "default");
+    let v = &j["verification"];
+    let verified = v["hypotheses"].as_array().unwrap();
+    assert!(!verified.is_empty() && verified.len() <= 8, "{v}");
+    let chosen = v["chosen"].as_u64().unwrap() as usize;
+    assert_eq!(j["chosen_rank"], verified[chosen]["rank"]);
+    let c = j["confidence"].as_f64().unwrap();
+    assert!((0.0..=1.0).contains(&c), "{c}");
     let rows: Vec<f64> = json_matrix(&j["transform"]);
     // The matrix file holds the same numbers, exactly.
     assert_eq!(
@@ -181,7 +189,7 @@ fn rotations_command_writes_npy() {
     let a = ggs::io::npy::read_npy(&p).unwrap();
     assert_eq!(a.shape, vec![1886, 3, 3]);
     // Registering with the written file gives the same answer as the named set.
-    let by_name = register_pair(&["--json"]);
+    let by_name = register_pair(&["--json", "--rotations", "limited15"]);
     let by_file = register_pair(&["--json", "--rotations-file", s(&p)]);
     let a: serde_json::Value = serde_json::from_slice(&by_name.stdout).unwrap();
     let b: serde_json::Value = serde_json::from_slice(&by_file.stdout).unwrap();
@@ -230,7 +238,95 @@ fn register_refines_with_gicp_by_default() {
     let j: serde_json::Value =
         serde_json::from_slice(&register_pair(&["--json", "--refine", "none"]).stdout).unwrap();
     assert!(j["refine"].is_null());
+    // Verification's ICP still moves the chosen hypothesis off the grid...
+    let m: Vec<f64> = json_matrix(&j["transform"]);
+    assert!(rre(&m, &gt) < 1.5, "RRE {}", rre(&m, &gt));
+    assert_ne!(j["transform"], j["coarse_transform"]);
+    // ...and without it the answer is the grid's.
+    let j: serde_json::Value = serde_json::from_slice(
+        &register_pair(&["--json", "--refine", "none", "--no-verify"]).stdout,
+    )
+    .unwrap();
+    assert!(j["verification"].is_null());
     assert_eq!(j["transform"], j["coarse_transform"]);
+}
+
+#[test]
+fn the_paper_preset_is_the_published_configuration() {
+    let j: serde_json::Value =
+        serde_json::from_slice(&register_pair(&["--json", "--preset", "paper"]).stdout).unwrap();
+    assert_eq!(j["preset"], "paper");
+    assert_eq!(j["result"]["rotation_set"], "limited15");
+    assert_eq!(j["result"]["rotations"], 1886);
+    assert_eq!(j["result"]["mode"]["kind"], "exhaustive");
+    assert_eq!(j["result"]["hypotheses"].as_array().unwrap().len(), 1);
+    assert!(j["verification"].is_null());
+    assert_eq!(j["refine"]["method"], "gicp");
+    assert_eq!(j["chosen_rank"], 0);
+    // The paper's answer on the bundled pair is right too.
+    let m: Vec<f64> = json_matrix(&j["transform"]);
+    assert!(rre(&m, &ground_truth()) < 1.0);
+    // Flags that need verification are refused with the paper preset.
+    assert_fails(
+        &[
+            "register",
+            s(&data("bun0.pcd")),
+            s(&data("bun4.pcd")),
+            "--preset",
+            "paper",
+            "--max-hypotheses",
+            "3",
+        ],
+        "need verification",
+    );
+    assert_fails(
+        &[
+            "register",
+            s(&data("bun0.pcd")),
+            s(&data("bun4.pcd")),
+            "--preset",
+            "nope",
+        ],
+        "unknown preset 'nope'",
+    );
+}
+
+#[test]
+fn the_default_summary_shows_the_verified_hypotheses_and_the_confidence() {
+    let out = register_pair(&["--max-hypotheses", "4", "--margin", "0"]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{text}");
+    assert!(
+        text.contains("preset default: 6360 rotations (hopf15-id), coarse-to-fine"),
+        "{text}"
+    );
+    assert!(text.contains("verified    4 hypothesis(es)"), "{text}");
+    assert!(text.contains("← chosen"), "{text}");
+    assert!(text.contains("confidence  "), "{text}");
+}
+
+/// The whole default pipeline (coarse-to-fine search, verification of several hypotheses,
+/// GICP) gives the same bits on 1 and 2 threads.
+#[test]
+fn the_default_pipeline_is_bit_identical_for_any_thread_count() {
+    let run = |threads: &str| -> serde_json::Value {
+        let out = register_pair(&["--json", "--margin", "0", "--threads", threads]);
+        assert!(out.status.success());
+        serde_json::from_slice(&out.stdout).unwrap()
+    };
+    let (a, b) = (run("1"), run("2"));
+    assert_eq!(a["transform"], b["transform"]);
+    assert_eq!(a["verification"]["hypotheses"].as_array().unwrap().len(), 8);
+    for k in ["transform", "evidence", "iterations"] {
+        for (ha, hb) in a["verification"]["hypotheses"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .zip(b["verification"]["hypotheses"].as_array().unwrap())
+        {
+            assert_eq!(ha[k], hb[k], "{k}");
+        }
+    }
 }
 
 #[test]

@@ -5,8 +5,7 @@ mod common;
 use ggs::benchmark::protocol::{eth_selection, parse_gt_log, Protocol};
 use ggs::benchmark::{missing_files, run, BenchPair, CloudRef, RunConfig};
 use ggs::io::kitti::write_kitti_bin;
-use ggs::refine::RefineConfig;
-use ggs::rotations::RotationSet;
+use ggs::pipeline::RegistrationConfig;
 use ggs::transform::Rigid;
 use std::path::{Path, PathBuf};
 
@@ -174,17 +173,18 @@ fn kitti_like(dir: &Path) -> Vec<BenchPair> {
     ]
 }
 
+/// The default pipeline on 2 threads.
 fn config() -> RunConfig {
     RunConfig {
         voxel: None,
-        rotations: RotationSet::named("limited15").unwrap(),
-        refine: Some(RefineConfig::default()),
-        threads: 2,
+        pipeline: RegistrationConfig {
+            threads: 2,
+            ..RegistrationConfig::default()
+        },
         max_rre_deg: 10.0,
         max_rte: Some(0.01),
         default_voxel: None,
-        mode: ggs::search::SearchMode::Exhaustive,
-        precision: ggs::search::Precision::Mixed,
+        motion_seed: None,
     }
 }
 

@@ -28,7 +28,9 @@ pub fn random_motion(seed: u64, id: &str, source: &Cloud) -> Rigid {
         (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
     };
     let q = Quaternion::new(normal(), normal(), normal(), normal());
-    let r = UnitQuaternion::from_quaternion(q).to_rotation_matrix().into_inner();
+    let r = UnitQuaternion::from_quaternion(q)
+        .to_rotation_matrix()
+        .into_inner();
     let half = source.aabb().map_or(1.0, |b| b.diagonal());
     let t = Vector3::new(
         rng.range(-half, half),

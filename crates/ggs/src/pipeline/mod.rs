@@ -13,7 +13,7 @@
 //! Two presets ([`Preset`]):
 //! - [`Preset::Default`], for clouds with no initial guess: the full-SO(3) set `hopf15-id`,
 //!   the coarse-to-fine search, the polish, and the verification of every distinct hypothesis
-//!   whose match score is within 75 % of the winner's (at most 8), then GICP;
+//!   whose match score is at least half the winner's (at most 8), then GICP;
 //! - [`Preset::Paper`], the configuration of the GGS paper: `limited15` (|α|, |γ| ≤ 90°),
 //!   exhaustive, the single best hypothesis, GICP with the reference parameters.
 //!
@@ -66,14 +66,14 @@ impl VoxelSize {
                 "voxel",
                 format!("must be a positive number, got {v}"),
             )),
-            VoxelSize::Auto { cells } => auto_voxel(target, cells).map(|v| (v, true)).ok_or_else(
-                || {
+            VoxelSize::Auto { cells } => {
+                auto_voxel(target, cells).map(|v| (v, true)).ok_or_else(|| {
                     GgsError::param(
                         "voxel",
                         "cannot choose a voxel size: the target has zero extent; give one",
                     )
-                },
-            ),
+                })
+            }
         }
     }
 }
@@ -118,8 +118,9 @@ impl std::str::FromStr for Preset {
 pub struct RegistrationConfig {
     pub voxel: VoxelSize,
     pub rotations: RotationSet,
-    /// The coarse search. Its `voxel` and `threads` are set from this config's; its `top_k`
-    /// is raised to [`VerifyConfig::max_hypotheses`] when verifying.
+    /// The coarse search. Its `voxel` and `threads` are set from this config's. Its `top_k`
+    /// hypotheses are reported in the result; the search looks for at least
+    /// [`VerifyConfig::max_hypotheses`] when verifying.
     pub search: SearchConfig,
     /// Finer rotations around each hypothesis (`None`: the grid's rotation is kept).
     pub polish: Option<PolishConfig>,
@@ -140,13 +141,14 @@ impl RegistrationConfig {
         match preset {
             Preset::Default => {
                 search.mode = SearchMode::CoarseToFine(CoarseToFine::default());
+                search.top_k = VerifyConfig::default().max_hypotheses;
                 RegistrationConfig {
                     voxel: VoxelSize::Auto {
                         cells: AUTO_VOXEL_CELLS,
                     },
                     rotations: named(DEFAULT_SET),
                     search,
-                    polish: Some(PolishConfig::default()),
+                    polish: None,
                     verify: Some(VerifyConfig::default()),
                     refine: Some(RefineConfig::default()),
                     threads: 0,
@@ -261,7 +263,7 @@ pub fn register(source: &Cloud, target: &Cloud, cfg: &RegistrationConfig) -> Res
     if let Some(v) = &cfg.verify {
         search.top_k = search.top_k.max(v.max_hypotheses);
     }
-    let coarse = coarse_register(source, target, &cfg.rotations, &search)?;
+    let mut coarse = coarse_register(source, target, &cfg.rotations, &search)?;
     let search_ms = ms(t0);
     let t_verify = Instant::now();
     let refine_cfg = cfg.refine.map(|r| RefineConfig {
@@ -270,7 +272,13 @@ pub fn register(source: &Cloud, target: &Cloud, cfg: &RegistrationConfig) -> Res
     });
     let verification = match &cfg.verify {
         Some(v) => Some(verify_hypotheses(
-            source, target, &coarse, &search, cfg, v, &refine_cfg,
+            source,
+            target,
+            &coarse,
+            &search,
+            cfg,
+            v,
+            &refine_cfg,
         )?),
         None => None,
     };
@@ -279,7 +287,11 @@ pub fn register(source: &Cloud, target: &Cloud, cfg: &RegistrationConfig) -> Res
             let h = &v.hypotheses[v.chosen];
             (h.transform, h.coarse_transform, h.rank)
         }
-        None => (polished_winner(source, target, &coarse, &search, cfg)?, coarse.transform, 0),
+        None => (
+            polished_winner(source, target, &coarse, &search, cfg)?,
+            coarse.transform,
+            0,
+        ),
     };
     let verify_ms = ms(t_verify);
     let t_refine = Instant::now();
@@ -289,6 +301,7 @@ pub fn register(source: &Cloud, target: &Cloud, cfg: &RegistrationConfig) -> Res
     };
     let refine_ms = ms(t_refine);
     let (confidence, ambiguous, warnings) = assess(&coarse, verification.as_ref(), cfg);
+    coarse.hypotheses.truncate(cfg.search.top_k.max(1));
     Ok(Registration {
         transform: refined.as_ref().map_or(start, |r| r.transform),
         coarse_transform,
@@ -320,9 +333,16 @@ fn polished_winner(
 ) -> Result<Rigid> {
     Ok(match &cfg.polish {
         Some(p) => {
-            polish::polish(source, target, &coarse.hypotheses[0], cfg.rotations.step_deg, search, p)?
-                .hypothesis
-                .transform
+            polish::polish(
+                source,
+                target,
+                &coarse.hypotheses[0],
+                cfg.rotations.step_deg,
+                search,
+                p,
+            )?
+            .hypothesis
+            .transform
         }
         None => coarse.transform,
     })
@@ -363,7 +383,9 @@ fn verify_hypotheses(
     let mut best = 0.0f64;
     for (rank, h) in candidates(coarse, v).iter().enumerate() {
         let polished = match &cfg.polish {
-            Some(p) => polish::polish(source, target, h, cfg.rotations.step_deg, search, p)?.hypothesis,
+            Some(p) => {
+                polish::polish(source, target, h, cfg.rotations.step_deg, search, p)?.hypothesis
+            }
             None => *h,
         };
         let c = verify::check(&thinned, &verifier, &polished.transform, &icp, v, best)?;

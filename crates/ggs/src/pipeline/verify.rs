@@ -64,7 +64,7 @@ pub struct VerifyConfig {
 impl Default for VerifyConfig {
     fn default() -> Self {
         VerifyConfig {
-            margin: 0.75,
+            margin: 0.5,
             max_hypotheses: 8,
             distance_voxels: 0.3,
             spacing_factor: 2.0,

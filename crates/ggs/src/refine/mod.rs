@@ -260,6 +260,11 @@ fn nearest_distance_quantile(
     positive_quantile(&dist)
 }
 
+/// Iterations remembered to detect a settled loop: a state (fitness, RMSE) repeating within
+/// this many iterations is a cycle of correspondences flipping in and out (cycles of 3
+/// iterations seen on the Stanford bunny scans ran to the 500-iteration cap before).
+const SETTLE_HISTORY: usize = 8;
+
 /// Radius doublings of [`nearest_distance_quantile`] before the k-d tree measures the rest.
 const QUANTILE_ROUNDS: usize = 4;
 
@@ -381,9 +386,9 @@ fn refine_in_pool(
     let t1 = Instant::now();
     let tsearch = RadiusSearch::new(tgt, d_c, Some(&tindex));
     let min_pairs = if cfg.method == Method::P2p { 3 } else { 6 };
-    // (fitness, rmse) of the last two iterations: a repeat of either means the loop has
-    // settled (a two-cycle, where one correspondence flips in and out, counts too).
-    let mut history: Vec<(f64, f64)> = Vec::with_capacity(2);
+    // (fitness, rmse) of the last SETTLE_HISTORY iterations: a repeat of any means the loop
+    // has settled (a cycle, where a few correspondences flip in and out, counts too).
+    let mut history: Vec<(f64, f64)> = Vec::with_capacity(SETTLE_HISTORY);
     let mut iterations = 0;
     let mut converged = exact;
     let mut stop_reason = if exact {
@@ -458,7 +463,7 @@ fn refine_in_pool(
             stop_reason = "relative change".into();
             break;
         }
-        if history.len() == 2 {
+        if history.len() == SETTLE_HISTORY {
             history.remove(0);
         }
         history.push((fitness, rmse));

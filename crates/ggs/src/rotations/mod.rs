@@ -74,7 +74,10 @@ impl RotationSet {
                 let keep = dedup::dedup_geodesic(&all, DUPLICATE_TOL_DEG);
                 (keep.iter().map(|&i| all[i]).collect(), 15.0)
             }
-            "hopf15-id" => (identity_anchored(Self::named("hopf15-dedup")?.matrices), 15.0),
+            "hopf15-id" => (
+                identity_anchored(Self::named("hopf15-dedup")?.matrices),
+                15.0,
+            ),
             "ico162-s10" => {
                 let all = icosphere::axis_angle_set(2, 10);
                 let keep = dedup::dedup_geodesic(&all, DUPLICATE_TOL_DEG);
