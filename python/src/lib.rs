@@ -468,8 +468,8 @@ fn pipeline_config(
         }
         _ => {}
     }
-    if !polish {
-        cfg.polish = None;
+    if polish {
+        cfg.polish = Some(pipeline::PolishConfig::default());
     }
     if let Some(method) = refine {
         cfg.refine = parse_refine(method, None, 0.25, 500, 20, threads)?;
@@ -480,7 +480,7 @@ fn pipeline_config(
 /// Register `source` onto `target` with no initial guess: coarse grid search over a rotation
 /// set, polish and verification of the distinct hypotheses, refinement of the best.
 #[pyfunction]
-#[pyo3(signature = (source, target, voxel=None, *, preset="default", rotations=None, refine=None, threads=None, top_k=None, search=None, precision="mixed", max_hypotheses=None, verify=true, polish=true))]
+#[pyo3(signature = (source, target, voxel=None, *, preset="default", rotations=None, refine=None, threads=None, top_k=None, search=None, precision="mixed", max_hypotheses=None, verify=true, polish=false))]
 #[allow(clippy::too_many_arguments)]
 fn register(
     py: Python<'_>,

@@ -85,9 +85,10 @@ pub struct PipelineArgs {
     /// Take the coarse winner without verification.
     #[arg(long)]
     pub no_verify: bool,
-    /// Keep the grid's rotations (no finer rotation grid around each hypothesis).
+    /// Polish each hypothesis on a finer rotation grid (7 rotations a step, scored by the
+    /// correlation) before its ICP; off by default (measured: no change on the benchmarks).
     #[arg(long)]
-    pub no_polish: bool,
+    pub polish: bool,
     /// Refinement after the coarse search: gicp (default), p2plane, p2p or none.
     #[arg(long)]
     pub refine: Option<String>,
@@ -126,8 +127,8 @@ impl PipelineArgs {
         } else if self.max_hypotheses.is_some() || self.margin.is_some() {
             bail!("--max-hypotheses and --margin need verification (not with --no-verify or --preset paper)");
         }
-        if self.no_polish {
-            cfg.polish = None;
+        if self.polish {
+            cfg.polish = Some(ggs::pipeline::PolishConfig::default());
         }
         let method = match &self.refine {
             Some(name) => parse_method(name)?,

@@ -1,0 +1,198 @@
+//! The default pipeline on the real pairs of `shared/data/pairs.tsv`, as they are and with
+//! every source moved by a seeded random rigid motion: the same pairs must be solved both
+//! ways (10° and 3 voxels, the manifest protocol). Also: a correct hypothesis 15° off ends
+//! correct (the verification's ICP schedule), and the whole pipeline is bit-identical on 1
+//! and 2 threads.
+//!
+//! Prints, per pair, whether it was solved, the chosen hypothesis's rank, the confidence and
+//! the rank of the right pose among the verified hypotheses (`cargo test --release -p ggs
+//! --test pipeline -- --nocapture`).
+
+mod common;
+
+use ggs::benchmark::motion::random_motion;
+use ggs::io::read_cloud;
+use ggs::manifest::read_manifest;
+use ggs::metrics::{is_success, rre, rte};
+use ggs::pipeline::{register, verify, Registration, RegistrationConfig, VoxelSize};
+use ggs::refine::{refine, RefineConfig};
+use ggs::transform::Rigid;
+use ggs::Cloud;
+use nalgebra::{Rotation3, Vector3};
+
+/// The two ≈ 20 %-overlap pairs that no configuration here solves (see docs/pipeline.md).
+const LOW_OVERLAP: &[&str] = &["bunny_ear_back_bun270", "bunny_top2_bun045"];
+
+fn config(voxel: f64, threads: usize) -> RegistrationConfig {
+    RegistrationConfig {
+        voxel: VoxelSize::Fixed(voxel),
+        threads,
+        ..RegistrationConfig::default()
+    }
+}
+
+/// Rank (in coarse order) of the first verified hypothesis within 10° and 3 voxels.
+fn right_rank(reg: &Registration, truth: &Rigid) -> Option<usize> {
+    let v = reg.verification.as_ref()?;
+    v.hypotheses
+        .iter()
+        .find(|h| {
+            is_success(
+                rre(&h.transform, truth),
+                rte(&h.transform, truth),
+                10.0,
+                3.0 * reg.voxel,
+            )
+        })
+        .map(|h| h.rank)
+}
+
+#[test]
+fn the_defaults_solve_the_real_pairs_moved_or_not() {
+    let Some(shared) = common::shared_dir() else {
+        return;
+    };
+    let pairs = read_manifest(&shared.join("data/pairs.tsv")).unwrap();
+    let mut failures = Vec::new();
+    eprintln!("| pair | moved | solved | RRE ° | RTE / voxel | chosen rank | right pose's rank | verified | confidence | ambiguous |");
+    eprintln!("|---|---|---|---|---|---|---|---|---|---|");
+    for pair in &pairs {
+        let source = read_cloud(&pair.source, None).unwrap().cloud;
+        let target = read_cloud(&pair.target, None).unwrap().cloud;
+        for moved in [false, true] {
+            let (src, truth) = if moved {
+                let m = random_motion(1, &pair.name, &source);
+                (
+                    source.transformed(&m),
+                    pair.ground_truth.compose(&m.inverse()),
+                )
+            } else {
+                (source.clone(), pair.ground_truth)
+            };
+            let reg = register(&src, &target, &config(pair.voxel, 0)).unwrap();
+            let (e_r, e_t) = (rre(&reg.transform, &truth), rte(&reg.transform, &truth));
+            let solved = is_success(e_r, e_t, 10.0, 3.0 * pair.voxel);
+            let verified = reg.verification.as_ref().map_or(0, |v| v.hypotheses.len());
+            eprintln!(
+                "| {} | {moved} | {solved} | {e_r:.2} | {:.2} | {} | {} | {verified} | {:.3} | {} |",
+                pair.name,
+                e_t / pair.voxel,
+                reg.chosen_rank,
+                right_rank(&reg, &truth).map_or("absent".into(), |r| r.to_string()),
+                reg.confidence,
+                reg.ambiguous
+            );
+            let expected = !LOW_OVERLAP.contains(&pair.name.as_str());
+            if solved != expected {
+                failures.push(format!(
+                    "{} (moved: {moved}): solved {solved}, RRE {e_r:.2}°",
+                    pair.name
+                ));
+            }
+            // A wrong answer on these pairs is flagged, not silent.
+            if !solved && !reg.ambiguous && reg.confidence > 0.2 {
+                failures.push(format!(
+                    "{}: wrong with confidence {:.3}, not flagged",
+                    pair.name, reg.confidence
+                ));
+            }
+        }
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
+/// The right pose turned by 15° and by 25° about random axes through the source's centroid: the
+/// verification's ICP (thinned clouds, the correspondence distance taken anew after the
+/// check) and the final GICP bring it to the minimum that GICP reaches from the ground truth
+/// itself (within 0.5° and a quarter of a voxel: the GICP minima of these pairs are that flat;
+/// measured 0.002–0.32°) on every pair the defaults solve. (GICP alone from the same starts
+/// ends 1–24° off on 4 of these 22 starts at 15°, 6 at 25°: docs/pipeline.md.)
+#[test]
+fn a_correct_hypothesis_15_degrees_off_ends_correct() {
+    let Some(shared) = common::shared_dir() else {
+        return;
+    };
+    let pairs = read_manifest(&shared.join("data/pairs.tsv")).unwrap();
+    let vcfg = verify::VerifyConfig::default();
+    let mut failures = Vec::new();
+    let mut rng = common::Lcg(15);
+    for pair in pairs
+        .iter()
+        .filter(|p| !LOW_OVERLAP.contains(&p.name.as_str()))
+    {
+        let source = read_cloud(&pair.source, None).unwrap().cloud;
+        let target = read_cloud(&pair.target, None).unwrap().cloud;
+        let verifier = verify::Verifier::new(&source, &target, pair.voxel, &vcfg);
+        let thinned = verify::Thinned::new(&source, &target, vcfg.cell_voxels * pair.voxel);
+        let c = Vector3::from(source.centroid().unwrap());
+        let gt = pair.ground_truth;
+        let from_truth = refine(&source, &target, &gt, &RefineConfig::default())
+            .unwrap()
+            .transform;
+        for degrees in [15.0f64, 25.0] {
+            let axis = Vector3::new(
+                rng.next_f64() - 0.5,
+                rng.next_f64() - 0.5,
+                rng.next_f64() - 0.5,
+            );
+            let turn = Rotation3::new(axis.normalize() * degrees.to_radians()).into_inner();
+            // Turn about the source centroid's image, so the centroid stays where GT puts it.
+            let pc = gt.rotation * c + gt.translation;
+            let r = turn * gt.rotation;
+            let start = Rigid::new(r, pc - r * c);
+            let checked = verify::check(
+                &thinned,
+                &verifier,
+                &start,
+                &RefineConfig::default(),
+                &vcfg,
+                0.0,
+            )
+            .unwrap();
+            let end = refine(
+                &source,
+                &target,
+                &checked.transform,
+                &RefineConfig::default(),
+            )
+            .unwrap();
+            let (e_r, e_t) = (
+                rre(&end.transform, &from_truth),
+                rte(&end.transform, &from_truth),
+            );
+            if !(e_r < 0.5 && e_t < 0.25 * pair.voxel) {
+                failures.push(format!(
+                    "{} from {degrees}° off: ended {e_r:.3}° and {:.3} voxels from GICP's minimum near the truth",
+                    pair.name,
+                    e_t / pair.voxel
+                ));
+            }
+        }
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
+#[test]
+fn the_pipeline_is_bit_identical_on_1_and_2_threads() {
+    let Some(shared) = common::shared_dir() else {
+        return;
+    };
+    let dir = shared.join("data/stanford_bunny");
+    let source: Cloud = read_cloud(&dir.join("chin.ply"), None).unwrap().cloud;
+    let target: Cloud = read_cloud(&dir.join("bun000.ply"), None).unwrap().cloud;
+    let run = |threads| {
+        let mut cfg = config(0.005, threads);
+        cfg.verify.as_mut().unwrap().margin = 0.0;
+        register(&source, &target, &cfg).unwrap()
+    };
+    let (a, b) = (run(1), run(2));
+    assert_eq!(a.transform, b.transform);
+    let (va, vb) = (a.verification.unwrap(), b.verification.unwrap());
+    assert_eq!(va.hypotheses.len(), 8);
+    assert_eq!(va.chosen, vb.chosen);
+    for (ha, hb) in va.hypotheses.iter().zip(&vb.hypotheses) {
+        assert_eq!(ha.transform, hb.transform);
+        assert_eq!(ha.evidence, hb.evidence);
+        assert_eq!(ha.iterations, hb.iterations);
+    }
+}
