@@ -2,7 +2,8 @@
 
 Greedy Grid Search (Bojanić et al., BMVC 2022 workshop) — voxelize both clouds, try every
 rotation of a grid, find the best translation of each by FFT cross-correlation — then
-generalized ICP. No features, no training, no initial guess.
+verification of the distinct hypotheses and generalized ICP. No features, no training, no
+initial guess.
 
     >>> import numpy as np, ggs
     >>> source = ggs.read_point_cloud("bun045.ply")          # (N, 3) float64
@@ -16,6 +17,7 @@ long search.
 """
 
 from ._ggs import (
+    PRESETS,
     ROTATION_SETS,
     Result,
     __version__,
@@ -28,6 +30,7 @@ from ._ggs import (
 from . import metrics
 
 __all__ = [
+    "PRESETS",
     "ROTATION_SETS",
     "Result",
     "__version__",

@@ -12,6 +12,7 @@ StrPath = Union[str, "PathLike[str]"]
 
 __version__: str
 ROTATION_SETS: List[str]
+PRESETS: List[str]
 
 class Result:
     """The outcome of :func:`register` or :func:`refine`."""
@@ -21,7 +22,25 @@ class Result:
         """Final 4×4 float64 transform, ``p_target = T · p_source``."""
     @property
     def coarse_transformation(self) -> Optional[Matrix4]:
-        """The coarse search's transform (None after :func:`refine`)."""
+        """The chosen hypothesis's grid transform, before ICP (None after :func:`refine`)."""
+    @property
+    def confidence(self) -> Optional[float]:
+        """In [0, 1]: 1 − (verification score of the best distinct runner-up) / (the chosen
+        one's); without a verified runner-up, 1 − the coarse ambiguity. None after refine()."""
+    @property
+    def ambiguous(self) -> Optional[bool]:
+        """True when two distinct poses explain the data about equally well."""
+    @property
+    def warnings(self) -> List[str]:
+        """Ambiguity and low-evidence warnings (also issued with ``warnings.warn``)."""
+    @property
+    def chosen_rank(self) -> Optional[int]:
+        """Rank of the chosen coarse hypothesis (0: the coarse winner)."""
+    @property
+    def verified(self) -> List[Dict[str, Any]]:
+        """The verified hypotheses in coarse rank order: rank, rotation_index, match_score,
+        polished_match_score, score, fitness_source, fitness_target, iterations,
+        rejected_early, chosen, runner_up, coarse_transformation, transformation."""
     @property
     def fitness(self) -> Optional[float]:
         """Share of source points matched within the correspondence distance after refinement."""
@@ -60,25 +79,33 @@ def register(
     source: Points,
     target: Points,
     voxel: Optional[float] = None,
-    rotations: str = "limited15",
-    refine: str = "gicp",
+    *,
+    preset: str = "default",
+    rotations: Optional[str] = None,
+    refine: Optional[str] = None,
     threads: Optional[int] = None,
-    top_k: int = 1,
-    search: str = "exhaustive",
+    top_k: Optional[int] = None,
+    search: Optional[str] = None,
     precision: str = "mixed",
+    max_hypotheses: Optional[int] = None,
+    verify: bool = True,
+    polish: bool = False,
 ) -> Result:
-    """Register ``source`` onto ``target`` without an initial guess.
+    """Register ``source`` onto ``target`` with no initial guess.
 
     voxel: grid size in the clouds' units (default: the target's longest side / 32).
-    rotations: a built-in rotation set (see ``ROTATION_SETS``); ``limited15`` covers
-    |α|, |γ| ≤ 90°, use ``hopf15-dedup`` or ``full15`` for arbitrary rotations.
-    refine: ``gicp``, ``p2plane``, ``p2p`` or ``none``. threads: default all cores; the
-    result does not depend on it. top_k: distinct hypotheses to report.
-    search: ``exhaustive`` (every rotation at the voxel size) or ``coarse-to-fine`` (every
-    rotation at twice the voxel, then the best 2 % and their neighbours at the voxel size;
-    several times faster, the same pick on every benchmark pair measured). precision:
-    ``mixed`` (f32 with proven error bounds, f64 re-scoring where they matter: the picks of
-    ``f64``) or ``f64``.
+    preset: ``default`` (the full-SO(3) set ``hopf15-id``, coarse-to-fine search, the
+    distinct hypotheses whose match score is at least half the winner's (at most 8) refined
+    on thinned clouds and the best-verified one kept, then GICP) or ``paper`` (the GGS
+    paper: ``limited15``, exhaustive, one hypothesis, GICP). The other arguments change the
+    preset: rotations (a name of ``ROTATION_SETS``), refine (``gicp``, ``p2plane``, ``p2p``,
+    ``none``), search (``exhaustive`` or ``coarse-to-fine``), precision (``mixed``: f32 with
+    proven error bounds and f64 re-scoring where they matter, the picks of ``f64``; or
+    ``f64``), max_hypotheses (verified at most), verify=False (take the coarse winner),
+    polish=True (a finer rotation grid around each hypothesis), top_k (coarse hypotheses
+    reported). threads: default all cores; the result does not depend on it.
+    Warnings (ambiguous poses, low evidence) are issued with ``warnings.warn`` and kept in
+    ``Result.warnings``.
     Raises ValueError for arrays that are not (N, 3) float32/float64 or hold NaN.
     """
 

@@ -321,7 +321,11 @@ impl PyResultObj {
     #[getter]
     fn verified<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
         let list = PyList::empty(py);
-        let Some(v) = self.registration.as_ref().and_then(|r| r.verification.as_ref()) else {
+        let Some(v) = self
+            .registration
+            .as_ref()
+            .and_then(|r| r.verification.as_ref())
+        else {
             return Ok(list);
         };
         for (k, h) in v.hypotheses.iter().enumerate() {
@@ -337,7 +341,10 @@ impl PyResultObj {
             d.set_item("rejected_early", h.rejected_early)?;
             d.set_item("chosen", k == v.chosen)?;
             d.set_item("runner_up", Some(k) == v.runner_up)?;
-            d.set_item("coarse_transformation", matrix_array(py, &h.coarse_transform)?)?;
+            d.set_item(
+                "coarse_transformation",
+                matrix_array(py, &h.coarse_transform)?,
+            )?;
             d.set_item("transformation", matrix_array(py, &h.transform)?)?;
             list.append(d)?;
         }

@@ -98,7 +98,7 @@ def test_nan_rows_and_bad_options():
         ggs.register(a, a, voxel=0.1, rotations="nope")
     with pytest.raises(ValueError, match="unknown method"):
         ggs.register(a, a, voxel=0.1, refine="icp9")
-    with pytest.raises(ValueError, match="voxel must be positive"):
+    with pytest.raises(ValueError, match="voxel: must be a positive number"):
         ggs.register(a, a, voxel=-1.0)
     with pytest.raises(ValueError, match="unknown mode"):
         ggs.register(a, a, voxel=0.1, search="greedy")
@@ -120,23 +120,47 @@ def test_register_bundled_pair_and_result_fields():
     assert len(r.hypotheses) == 3 and r.hypotheses[0]["rotation_index"] == r.rotation_index
     assert {"coarse_ms", "refine_ms", "total_ms"} <= set(r.timings)
     assert r.report["method"] == "gicp"
-    assert "ggs.Result(" in repr(r) and "transformation" in repr(r)
+    assert "ggs.Result(" in repr(r) and "confidence=" in repr(r)
+    # The verification: several distinct hypotheses, one chosen, a confidence in [0, 1].
+    assert 0.0 <= r.confidence <= 1.0 and r.ambiguous in (False, True)
+    assert isinstance(r.warnings, list)
+    chosen = [h for h in r.verified if h["chosen"]]
+    assert len(chosen) == 1 and chosen[0]["rank"] == r.chosen_rank
+    assert all(0.0 <= h["score"] <= 1.0 for h in r.verified)
+    assert {"verify_ms", "search_ms"} <= set(r.timings)
     # float32 input of the same values gives the same answer.
     r32 = ggs.register(source.astype(np.float32).astype(np.float64), target, voxel=0.006)
     r32b = ggs.register(source.astype(np.float32), target, voxel=0.006)
     np.testing.assert_array_equal(r32.transformation, r32b.transformation)
-    # refine() from the coarse pose reproduces register()'s refinement exactly.
-    again = ggs.refine(source, target, r.coarse_transformation)
+    # refine() from the verified pose reproduces register()'s final refinement exactly.
+    again = ggs.refine(source, target, chosen[0]["transformation"])
     np.testing.assert_array_equal(again.transformation, r.transformation)
-    assert again.score is None and again.fitness == r.fitness
+    assert again.score is None and again.fitness == r.fitness and again.confidence is None
+
+
+def test_presets():
+    source, target = bunny_small()
+    truth = np.loadtxt(DATA / "bun0_to_bun4_groundtruth.txt")
+    assert ggs.PRESETS == ["default", "paper"]
+    paper = ggs.register(source, target, voxel=0.006, preset="paper")
+    assert paper.verified == [] and len(paper.hypotheses) == 1
+    assert ggs.metrics.rre(paper.transformation, truth) < 1.0
+    # The paper's set is limited15: rotation indices refer to it.
+    assert paper.rotation_index < 1886
+    unverified = ggs.register(source, target, voxel=0.006, verify=False, refine="none")
+    np.testing.assert_array_equal(unverified.transformation, unverified.coarse_transformation)
+    with pytest.raises(ValueError, match="preset"):
+        ggs.register(source, target, voxel=0.006, preset="fast")
+    with pytest.raises(ValueError, match="needs verification"):
+        ggs.register(source, target, voxel=0.006, preset="paper", max_hypotheses=3)
 
 
 def test_search_modes_and_precisions_agree():
     source, target = bunny_small()
-    base = ggs.register(source, target, voxel=0.006, refine="none")
+    base = ggs.register(source, target, voxel=0.006, refine="none", verify=False, search="exhaustive")
     for search, precision in [("coarse-to-fine", "mixed"), ("exhaustive", "f64")]:
         r = ggs.register(
-            source, target, voxel=0.006, refine="none", search=search, precision=precision
+            source, target, voxel=0.006, refine="none", verify=False, search=search, precision=precision
         )
         np.testing.assert_array_equal(r.transformation, base.transformation)
         assert r.score == base.score
@@ -180,7 +204,7 @@ def test_gil_is_released_during_registration():
     th = threading.Thread(target=count)
     th.start()
     t0 = time.perf_counter()
-    ggs.register(source, target, voxel=0.003, rotations="full15", threads=1)
+    ggs.register(source, target, voxel=0.003, rotations="full15", search="exhaustive", threads=1)
     t1 = time.perf_counter()
     done.set()
     th.join()
@@ -200,7 +224,7 @@ def test_ctrl_c_interrupts_a_long_search():
     with pytest.raises(KeyboardInterrupt):
         # Far longer than 0.3 s on any machine.
         for _ in range(50):
-            ggs.register(source, target, voxel=0.002, rotations="full15", threads=1)
+            ggs.register(source, target, voxel=0.002, rotations="full15", search="exhaustive", threads=1)
     assert time.perf_counter() - t0 < 30
 
 

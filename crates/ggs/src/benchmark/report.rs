@@ -105,15 +105,21 @@ impl Summary {
         let failed: Vec<&PairRow> = rows.iter().filter(|r| !r.success).collect();
         if !failed.is_empty() {
             s += &format!("\n## Unsuccessful pairs ({})\n\n", failed.len());
-            s += "| pair | RRE ° | RTE | coarse RRE ° | coarse RTE | error |\n|---|---|---|---|---|---|\n";
+            s += "| pair | RRE ° | RTE | coarse RRE ° | coarse RTE | chosen rank / verified | confidence | ambiguous | error |\n|---|---|---|---|---|---|---|---|---|\n";
             for r in failed {
+                let rank = match (r.chosen_rank, r.verified) {
+                    (Some(c), Some(v)) => format!("{} / {v}", c + 1),
+                    _ => "n/a".into(),
+                };
                 s += &format!(
-                    "| {} | {:.3} | {:.4} | {:.3} | {:.4} | {} |\n",
+                    "| {} | {:.3} | {:.4} | {:.3} | {:.4} | {rank} | {:.3} | {} | {} |\n",
                     r.id,
                     r.rre,
                     r.rte,
                     r.coarse_rre,
                     r.coarse_rte,
+                    r.confidence,
+                    if r.ambiguous { "yes" } else { "no" },
                     r.error.as_deref().unwrap_or("").replace('|', "/")
                 );
             }
