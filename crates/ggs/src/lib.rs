@@ -3,19 +3,20 @@
 //! ggs implements the Greedy Grid Search of Bojanić et al. (BMVC 2022 workshop): voxelize
 //! both clouds, try every rotation of a grid, find the best translation for each by FFT
 //! cross-correlation, keep the best (rotation, translation). No features, no training, no
-//! initial guess.
+//! initial guess. On top of it, ggs verifies the distinct hypotheses by ICP on thinned clouds
+//! and a fixed-distance score, and refines the best by generalized ICP.
 //!
 //! The pipeline, one module per stage:
-//! [`io`] → [`cloud`] → [`voxel`] → [`rotations`] → [`correlate`] → [`search`] → [`transform`],
-//! with [`metrics`] for evaluation.
+//! [`io`] → [`cloud`] → [`voxel`] → [`rotations`] → [`correlate`] → [`search`] → [`refine`],
+//! composed by [`pipeline`] (which every front end calls), with [`metrics`] for evaluation.
 //!
 //! ```no_run
-//! use ggs::{io, rotations::RotationSet, search::{coarse_register, SearchConfig}};
+//! use ggs::{io, pipeline::{register, RegistrationConfig, VoxelSize}};
 //! let source = io::read_cloud("source.ply".as_ref(), None)?.cloud;
 //! let target = io::read_cloud("target.ply".as_ref(), None)?.cloud;
-//! let set = RotationSet::named("limited15")?;
-//! let result = coarse_register(&source, &target, &set, &SearchConfig::with_voxel(0.005))?;
-//! println!("{}", result.transform.to_text());
+//! let cfg = RegistrationConfig { voxel: VoxelSize::Fixed(0.005), ..RegistrationConfig::default() };
+//! let result = register(&source, &target, &cfg)?;
+//! println!("{}confidence {:.2}", result.transform.to_text(), result.confidence);
 //! # Ok::<(), ggs::GgsError>(())
 //! ```
 
