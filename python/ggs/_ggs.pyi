@@ -115,12 +115,16 @@ def refine(
     init: Matrix4,
     method: str = "gicp",
     max_distance: Optional[float] = None,
-    distance_quantile: float = 0.25,
-    max_iterations: int = 500,
-    neighbors: int = 20,
+    distance_quantile: Optional[float] = None,
+    max_iterations: Optional[int] = None,
+    neighbors: Optional[int] = None,
     threads: Optional[int] = None,
 ) -> Result:
-    """Refine an initial 4×4 transform by ICP (``gicp``, ``p2plane`` or ``p2p``)."""
+    """Refine an initial 4×4 transform by ICP (``gicp``, ``p2plane`` or ``p2p``).
+
+    max_distance: a fixed correspondence distance (default: the distance_quantile, 0.25, of
+    the nearest-neighbour distances at the start); max_iterations: 500; neighbors (for normals
+    and covariances): 20. The defaults are the library's (the reference GICP's)."""
 
 def read_point_cloud(
     path: StrPath,

@@ -144,12 +144,14 @@ fn run_interruptible<T: Send>(
     })
 }
 
+/// The refinement `method` (or None for `none`): the library's defaults
+/// ([`RefineConfig::default`]) changed by the arguments given.
 fn parse_refine(
     method: &str,
     max_distance: Option<f64>,
-    distance_quantile: f64,
-    max_iterations: usize,
-    neighbors: usize,
+    distance_quantile: Option<f64>,
+    max_iterations: Option<usize>,
+    neighbors: Option<usize>,
     threads: usize,
 ) -> PyResult<Option<RefineConfig>> {
     if method == "none" {
@@ -160,17 +162,19 @@ fn parse_refine(
             "refine: unknown method '{method}' (gicp, p2plane, p2p, none)"
         ))
     })?;
+    let base = RefineConfig::default();
+    let quantile = distance_quantile.unwrap_or(refine::DEFAULT_DISTANCE_QUANTILE);
     Ok(Some(RefineConfig {
         method: m,
         correspondence: match max_distance {
             Some(d) => CorrespondenceDistance::Fixed(d),
-            None => CorrespondenceDistance::Quantile(distance_quantile),
+            None => CorrespondenceDistance::Quantile(quantile),
         },
         kernel: RobustKernel::None,
-        max_iterations,
-        neighbors,
+        max_iterations: max_iterations.unwrap_or(base.max_iterations),
+        neighbors: neighbors.unwrap_or(base.neighbors),
         threads,
-        ..RefineConfig::default()
+        ..base
     }))
 }
 
@@ -479,7 +483,7 @@ fn pipeline_config(
         cfg.polish = Some(pipeline::PolishConfig::default());
     }
     if let Some(method) = refine {
-        cfg.refine = parse_refine(method, None, 0.25, 500, 20, threads)?;
+        cfg.refine = parse_refine(method, None, None, None, None, threads)?;
     }
     Ok(cfg)
 }
@@ -543,7 +547,7 @@ fn register(
 
 /// Refine an initial 4×4 transform `init` (`p_target = init · p_source`) by ICP.
 #[pyfunction(name = "refine")]
-#[pyo3(signature = (source, target, init, method="gicp", max_distance=None, distance_quantile=0.25, max_iterations=500, neighbors=20, threads=None))]
+#[pyo3(signature = (source, target, init, method="gicp", max_distance=None, distance_quantile=None, max_iterations=None, neighbors=None, threads=None))]
 #[allow(clippy::too_many_arguments)]
 fn refine_py(
     py: Python<'_>,
@@ -552,9 +556,9 @@ fn refine_py(
     init: &Bound<'_, PyAny>,
     method: &str,
     max_distance: Option<f64>,
-    distance_quantile: f64,
-    max_iterations: usize,
-    neighbors: usize,
+    distance_quantile: Option<f64>,
+    max_iterations: Option<usize>,
+    neighbors: Option<usize>,
     threads: Option<usize>,
 ) -> PyResult<PyResultObj> {
     let t0 = Instant::now();

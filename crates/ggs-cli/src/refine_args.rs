@@ -2,7 +2,10 @@
 
 use anyhow::{bail, Context, Result};
 use clap::Args;
-use ggs::refine::{CorrespondenceDistance, Method, RefineConfig, RefineResult, RobustKernel};
+use ggs::refine::{
+    CorrespondenceDistance, Method, RefineConfig, RefineResult, RobustKernel,
+    DEFAULT_DISTANCE_QUANTILE,
+};
 use ggs::Rigid;
 use std::path::Path;
 
@@ -12,35 +15,37 @@ pub struct RefineOptions {
     /// source-to-target nearest-neighbour distances after the initial transform).
     #[arg(long, value_name = "D")]
     pub max_distance: Option<f64>,
-    /// Quantile used when no fixed distance is given.
-    #[arg(long, default_value_t = 0.25, value_name = "Q")]
-    pub distance_quantile: f64,
+    /// Quantile used when no fixed distance is given (default 0.25, the reference's).
+    #[arg(long, value_name = "Q")]
+    pub distance_quantile: Option<f64>,
     /// Robust kernel: none, huber:K, cauchy:K, geman-mcclure:K (K in cloud units).
     #[arg(long, default_value = "none")]
     pub kernel: String,
-    /// Iteration cap.
-    #[arg(long, default_value_t = 500)]
-    pub max_iterations: usize,
-    /// Neighbours for normals and covariances.
-    #[arg(long, default_value_t = 20)]
-    pub neighbors: usize,
+    /// Iteration cap (default 500, the reference's).
+    #[arg(long)]
+    pub max_iterations: Option<usize>,
+    /// Neighbours for normals and covariances (default 20).
+    #[arg(long)]
+    pub neighbors: Option<usize>,
 }
 
 impl RefineOptions {
+    /// The library's defaults ([`RefineConfig::default`]) changed by the options given.
     pub fn config(&self, method: Method, threads: usize) -> Result<RefineConfig> {
-        let kernel = parse_kernel(&self.kernel)?;
+        let base = RefineConfig::default();
+        let quantile = self.distance_quantile.unwrap_or(DEFAULT_DISTANCE_QUANTILE);
         let correspondence = match self.max_distance {
             Some(d) => CorrespondenceDistance::Fixed(d),
-            None => CorrespondenceDistance::Quantile(self.distance_quantile),
+            None => CorrespondenceDistance::Quantile(quantile),
         };
         Ok(RefineConfig {
             method,
             correspondence,
-            kernel,
-            max_iterations: self.max_iterations,
-            neighbors: self.neighbors,
+            kernel: parse_kernel(&self.kernel)?,
+            max_iterations: self.max_iterations.unwrap_or(base.max_iterations),
+            neighbors: self.neighbors.unwrap_or(base.neighbors),
             threads,
-            ..RefineConfig::default()
+            ..base
         })
     }
 }

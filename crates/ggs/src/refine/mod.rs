@@ -137,11 +137,15 @@ pub struct RefineConfig {
     pub threads: usize,
 }
 
+/// The reference's correspondence-distance quantile: 0.25 of the nearest-neighbour distances
+/// at the start.
+pub const DEFAULT_DISTANCE_QUANTILE: f64 = 0.25;
+
 impl Default for RefineConfig {
     fn default() -> Self {
         RefineConfig {
             method: Method::Gicp,
-            correspondence: CorrespondenceDistance::Quantile(0.25),
+            correspondence: CorrespondenceDistance::Quantile(DEFAULT_DISTANCE_QUANTILE),
             kernel: RobustKernel::None,
             max_iterations: 500,
             relative_fitness: 1e-6,
