@@ -1,6 +1,6 @@
 //! Refinement options shared by `ggs register` and `ggs refine`.
 
-use anyhow::{bail, Context, Result};
+use anyhow::{Context, Result};
 use clap::Args;
 use ggs::refine::{
     CorrespondenceDistance, Method, RefineConfig, RefineResult, RobustKernel,
@@ -60,23 +60,7 @@ pub fn parse_method(s: &str) -> Result<Option<Method>> {
 }
 
 fn parse_kernel(s: &str) -> Result<RobustKernel> {
-    if s == "none" {
-        return Ok(RobustKernel::None);
-    }
-    let (name, k) = s
-        .split_once(':')
-        .with_context(|| format!("--kernel '{s}': expected NAME:K, e.g. huber:0.01"))?;
-    let k: f64 = k
-        .parse()
-        .ok()
-        .filter(|k: &f64| k.is_finite() && *k > 0.0)
-        .with_context(|| format!("--kernel '{s}': K must be a positive number"))?;
-    Ok(match name {
-        "huber" => RobustKernel::Huber(k),
-        "cauchy" => RobustKernel::Cauchy(k),
-        "geman-mcclure" => RobustKernel::GemanMcClure(k),
-        _ => bail!("--kernel '{s}': unknown kernel '{name}' (huber, cauchy, geman-mcclure)"),
-    })
+    s.parse().context("--kernel")
 }
 
 /// Read a 4×4 matrix file: 16 numbers, `#` comments allowed.

@@ -25,6 +25,7 @@
 
 pub mod covariance;
 pub mod estimators;
+pub mod evaluate;
 pub mod grid;
 pub mod neighbors;
 
@@ -100,6 +101,33 @@ impl RobustKernel {
                 let a = k * k / (k * k + e * e);
                 a * a
             }
+        }
+    }
+}
+
+impl std::str::FromStr for RobustKernel {
+    type Err = GgsError;
+    /// `none`, `huber:K`, `cauchy:K` or `geman-mcclure:K` (K > 0, cloud units).
+    fn from_str(s: &str) -> Result<Self> {
+        if s == "none" {
+            return Ok(RobustKernel::None);
+        }
+        let bad = |why: String| GgsError::param("kernel", format!("'{s}': {why}"));
+        let (name, k) = s
+            .split_once(':')
+            .ok_or_else(|| bad("expected NAME:K, e.g. huber:0.01".into()))?;
+        let k: f64 = k
+            .parse()
+            .ok()
+            .filter(|k: &f64| k.is_finite() && *k > 0.0)
+            .ok_or_else(|| bad("K must be a positive number".into()))?;
+        match name {
+            "huber" => Ok(RobustKernel::Huber(k)),
+            "cauchy" => Ok(RobustKernel::Cauchy(k)),
+            "geman-mcclure" => Ok(RobustKernel::GemanMcClure(k)),
+            _ => Err(bad(format!(
+                "unknown kernel '{name}' (none, huber, cauchy, geman-mcclure)"
+            ))),
         }
     }
 }
