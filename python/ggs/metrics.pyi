@@ -1,1 +1,3 @@
 from ._ggs import rre as rre, rte as rte
+
+__all__ = ["rre", "rte"]

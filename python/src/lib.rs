@@ -1,116 +1,56 @@
-//! Python bindings of ggs: numpy arrays in, numpy arrays out.
+//! The native part of the `ggs` Python package: numpy arrays in, dicts and numpy arrays out.
+//! The public API (argument conversion, `ggs.Result`, warnings, helpers, docstrings) is the
+//! Python layer in `python/ggs/`; these functions are its engine.
 //!
 //! The heavy calls (`register`, `refine`) run on a worker thread with the GIL released; the
-//! calling thread wakes every 50 ms to let Python handle signals, so Ctrl-C stops a long
-//! search (through the search's cancel flag) and raises `KeyboardInterrupt`.
+//! calling thread wakes every 50 ms to let Python handle signals (Ctrl-C stops a long search
+//! through the search's cancel flag and raises `KeyboardInterrupt`) and to report progress.
 
+mod arrays;
+mod result;
+
+use arrays::{matrix_of, points_array, points_of, rotations_of, to_py_err, value_err};
 use ggs::io::{self, Format};
-use ggs::pipeline::{self, Preset, Registration, RegistrationConfig, VoxelSize};
-use ggs::refine::{self, CorrespondenceDistance, Method, RefineConfig, RefineResult, RobustKernel};
+use ggs::pipeline::{self, Preset, RegistrationConfig, VoxelSize};
+use ggs::refine::{self, CorrespondenceDistance, Method, RefineConfig, RobustKernel};
 use ggs::rotations::RotationSet;
-use ggs::search::{self, Hypothesis, SearchResult};
-use ggs::{Cloud, GgsError, Point, Rigid};
-use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray2, PyUntypedArrayMethods};
-use pyo3::exceptions::{PyOSError, PyRuntimeError, PyValueError};
+use ggs::{search, Cloud};
+use numpy::{PyArray1, PyArrayMethods};
+use pyo3::exceptions::{PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
-use pyo3::types::{PyDict, PyList};
+use pyo3::types::PyDict;
+use result::result_dict;
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::{mpsc, Arc};
 use std::time::{Duration, Instant};
 
-fn to_py_err(e: GgsError) -> PyErr {
-    match e {
-        GgsError::Io { .. } => PyOSError::new_err(e.to_string()),
-        GgsError::Cancelled => pyo3::exceptions::PyKeyboardInterrupt::new_err("cancelled"),
-        _ => PyValueError::new_err(e.to_string()),
-    }
+/// A Python progress callback `progress(done, total)` and the count the search updates.
+struct Progress {
+    callback: Py<PyAny>,
+    done: Arc<AtomicUsize>,
+    total: usize,
 }
 
-/// An (N, 3) float32 or float64 array as points (read in place, whatever its strides;
-/// copied once into the cloud). Anything else is a `ValueError` naming the argument.
-fn points_of(name: &str, obj: &Bound<'_, PyAny>) -> PyResult<Vec<Point>> {
-    fn rows<T: Copy + Into<f64> + numpy::Element>(
-        name: &str,
-        a: PyReadonlyArray2<'_, T>,
-    ) -> PyResult<Vec<Point>> {
-        let view = a.as_array();
-        let mut out = Vec::with_capacity(view.nrows());
-        for (i, r) in view.rows().into_iter().enumerate() {
-            let p: Point = [r[0].into(), r[1].into(), r[2].into()];
-            if !p.iter().all(|c| c.is_finite()) {
-                return Err(PyValueError::new_err(format!(
-                    "{name}: row {i} has a NaN or infinite coordinate {p:?}"
-                )));
-            }
-            out.push(p);
-        }
-        Ok(out)
-    }
-    let describe = || -> String {
-        let dtype = obj
-            .getattr("dtype")
-            .map(|d| d.to_string())
-            .unwrap_or_else(|_| obj.get_type().to_string());
-        let shape = obj
-            .getattr("shape")
-            .map(|s| s.to_string())
-            .unwrap_or_else(|_| "(no shape)".into());
-        format!("{name}: expected an (N, 3) float32 or float64 numpy array, got dtype {dtype} with shape {shape}")
-    };
-    let check_shape = |shape: &[usize]| -> PyResult<()> {
-        if shape.len() != 2 || shape[1] != 3 {
-            return Err(PyValueError::new_err(describe()));
-        }
-        if shape[0] == 0 {
-            return Err(PyValueError::new_err(format!(
-                "{name}: the array has no point"
-            )));
+impl Progress {
+    /// Call the callback if the count moved since `last`.
+    fn report(&self, py: Python<'_>, last: &mut usize) -> PyResult<()> {
+        let now = self.done.load(Ordering::Relaxed);
+        if now != *last {
+            *last = now;
+            self.callback.call1(py, (now, self.total))?;
         }
         Ok(())
-    };
-    if let Ok(a) = obj.extract::<PyReadonlyArray2<'_, f64>>() {
-        check_shape(a.shape())?;
-        return rows(name, a);
     }
-    if let Ok(a) = obj.extract::<PyReadonlyArray2<'_, f32>>() {
-        check_shape(a.shape())?;
-        return rows(name, a);
-    }
-    Err(PyValueError::new_err(describe()))
 }
 
-fn matrix_of(name: &str, obj: &Bound<'_, PyAny>) -> PyResult<Rigid> {
-    let a = obj
-        .extract::<PyReadonlyArray2<'_, f64>>()
-        .map_err(|_| PyValueError::new_err(format!("{name}: expected a 4×4 float64 array")))?;
-    if a.shape() != [4, 4] {
-        return Err(PyValueError::new_err(format!(
-            "{name}: expected a 4×4 array, got shape {:?}",
-            a.shape()
-        )));
-    }
-    let v: Vec<f64> = a.as_array().iter().copied().collect();
-    Rigid::from_row_major(&v, 1e-4).map_err(|m| PyValueError::new_err(format!("{name}: {m}")))
-}
-
-fn matrix_array<'py>(py: Python<'py>, t: &Rigid) -> PyResult<Bound<'py, PyAny>> {
-    let flat: Vec<f64> = t.to_rows().concat();
-    Ok(PyArray1::from_vec(py, flat).reshape([4, 4])?.into_any())
-}
-
-fn points_array<'py>(py: Python<'py>, pts: &[Point]) -> PyResult<Bound<'py, PyAny>> {
-    let flat: Vec<f64> = pts.iter().flat_map(|p| p.iter().copied()).collect();
-    Ok(PyArray1::from_vec(py, flat)
-        .reshape([pts.len(), 3])?
-        .into_any())
-}
-
-/// Run `work` on a scoped worker thread with the GIL released, polling for signals; on
-/// Ctrl-C set `cancel`, wait for the worker and return the signal's exception.
+/// Run `work` on a scoped worker thread with the GIL released, polling for signals and
+/// reporting progress; on Ctrl-C (or an exception in the callback) set `cancel`, wait for the
+/// worker and raise.
 fn run_interruptible<T: Send>(
     py: Python<'_>,
     cancel: &Arc<AtomicBool>,
+    progress: Option<&Progress>,
     work: impl FnOnce() -> T + Send,
 ) -> PyResult<T> {
     std::thread::scope(|scope| {
@@ -120,6 +60,7 @@ fn run_interruptible<T: Send>(
         scope.spawn(move || {
             let _ = tx.send(work());
         });
+        let mut last = 0;
         loop {
             let got = py.detach(|| {
                 rx.lock()
@@ -127,9 +68,17 @@ fn run_interruptible<T: Send>(
                     .recv_timeout(Duration::from_millis(50))
             });
             match got {
-                Ok(v) => return Ok(v),
+                Ok(v) => {
+                    if let Some(p) = progress {
+                        p.report(py, &mut last)?;
+                    }
+                    return Ok(v);
+                }
                 Err(mpsc::RecvTimeoutError::Timeout) => {
-                    if let Err(e) = py.check_signals() {
+                    let polled = py
+                        .check_signals()
+                        .and_then(|_| progress.map_or(Ok(()), |p| p.report(py, &mut last)));
+                    if let Err(e) = polled {
                         cancel.store(true, Ordering::Relaxed);
                         // The worker stops at its next rotation; drain it before raising.
                         let _ = py.detach(|| rx.lock().expect("only this thread").recv());
@@ -146,12 +95,14 @@ fn run_interruptible<T: Send>(
 
 /// The refinement `method` (or None for `none`): the library's defaults
 /// ([`RefineConfig::default`]) changed by the arguments given.
+#[allow(clippy::too_many_arguments)]
 fn parse_refine(
     method: &str,
     max_distance: Option<f64>,
     distance_quantile: Option<f64>,
     max_iterations: Option<usize>,
     neighbors: Option<usize>,
+    kernel: &str,
     threads: usize,
 ) -> PyResult<Option<RefineConfig>> {
     if method == "none" {
@@ -164,13 +115,14 @@ fn parse_refine(
     })?;
     let base = RefineConfig::default();
     let quantile = distance_quantile.unwrap_or(refine::DEFAULT_DISTANCE_QUANTILE);
+    let kernel: RobustKernel = kernel.parse().map_err(value_err)?;
     Ok(Some(RefineConfig {
         method: m,
         correspondence: match max_distance {
             Some(d) => CorrespondenceDistance::Fixed(d),
             None => CorrespondenceDistance::Quantile(quantile),
         },
-        kernel: RobustKernel::None,
+        kernel,
         max_iterations: max_iterations.unwrap_or(base.max_iterations),
         neighbors: neighbors.unwrap_or(base.neighbors),
         threads,
@@ -178,389 +130,192 @@ fn parse_refine(
     }))
 }
 
-/// The outcome of a registration or a refinement.
-#[pyclass(name = "Result", module = "ggs", frozen)]
-struct PyResultObj {
-    transform: Rigid,
-    registration: Option<Registration>,
-    refined: Option<RefineResult>,
-    total_ms: f64,
-}
-
-impl PyResultObj {
-    fn coarse(&self) -> Option<&SearchResult> {
-        self.registration.as_ref().map(|r| &r.search)
-    }
-}
-
-fn hypothesis_dict<'py>(py: Python<'py>, h: &Hypothesis) -> PyResult<Bound<'py, PyDict>> {
-    let d = PyDict::new(py);
-    d.set_item("rotation_index", h.rotation_index)?;
-    d.set_item("score", h.score)?;
-    d.set_item("match_score", h.match_score)?;
-    d.set_item("offset", h.offset.to_vec())?;
-    d.set_item("transformation", matrix_array(py, &h.transform)?)?;
-    Ok(d)
-}
-
-#[pymethods]
-impl PyResultObj {
-    /// The final 4×4 transform (float64), `p_target = T · p_source`.
-    #[getter]
-    fn transformation<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        matrix_array(py, &self.transform)
-    }
-
-    /// The chosen hypothesis's grid transform, before polish and ICP (None after `refine`).
-    #[getter]
-    fn coarse_transformation<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyAny>>> {
-        self.registration
-            .as_ref()
-            .map(|r| matrix_array(py, &r.coarse_transform))
-            .transpose()
-    }
-
-    /// Share of source points with a target point within the correspondence distance after
-    /// refinement (None without refinement).
-    #[getter]
-    fn fitness(&self) -> Option<f64> {
-        self.refined.as_ref().map(|r| r.report.fitness_source)
-    }
-
-    /// Share of target points matched (None without refinement).
-    #[getter]
-    fn fitness_target(&self) -> Option<f64> {
-        self.refined.as_ref().map(|r| r.report.fitness_target)
-    }
-
-    /// RMS distance of the inlier correspondences, in the clouds' units (None without
-    /// refinement).
-    #[getter]
-    fn inlier_rmse(&self) -> Option<f64> {
-        self.refined.as_ref().map(|r| r.report.inlier_rmse)
-    }
-
-    /// The coarse search's exact integer score (None after `refine`).
-    #[getter]
-    fn score(&self) -> Option<i64> {
-        self.coarse().map(|c| c.score)
-    }
-
-    /// Runner-up match score / best match score, over rotations more than the distinct
-    /// radius away (near 1: ambiguous). None if there is no runner-up.
-    #[getter]
-    fn ambiguity(&self) -> Option<f64> {
-        self.coarse().and_then(|c| c.ambiguity)
-    }
-
-    /// Index of the best rotation in the rotation set.
-    #[getter]
-    fn rotation_index(&self) -> Option<usize> {
-        self.coarse().map(|c| c.rotation_index)
-    }
-
-    /// The voxel size used by the coarse search.
-    #[getter]
-    fn voxel(&self) -> Option<f64> {
-        self.coarse().map(|c| c.voxel)
-    }
-
-    /// Whether the refinement converged (None without refinement).
-    #[getter]
-    fn converged(&self) -> Option<bool> {
-        self.refined.as_ref().map(|r| r.report.converged)
-    }
-
-    /// Times in milliseconds: coarse stages, refinement and the whole call.
-    #[getter]
-    fn timings<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        let d = PyDict::new(py);
-        if let Some(r) = &self.registration {
-            let t = &r.search.timings;
-            d.set_item("coarse_ms", t.total_ms)?;
-            d.set_item("target_ms", t.target_ms)?;
-            d.set_item("extents_ms", t.extents_ms)?;
-            d.set_item("search_ms", t.search_ms)?;
-            d.set_item("verify_ms", r.timings.verify_ms)?;
-        }
-        if let Some(r) = &self.refined {
-            d.set_item("refine_ms", r.total_ms)?;
-        }
-        d.set_item("total_ms", self.total_ms)?;
-        Ok(d)
-    }
-
-    /// How sure the result is, in [0, 1]: 1 − (verification score of the best distinct
-    /// runner-up) / (the chosen one's); without a verified runner-up, 1 − the coarse ambiguity.
-    /// None after `refine`.
-    #[getter]
-    fn confidence(&self) -> Option<f64> {
-        self.registration.as_ref().map(|r| r.confidence)
-    }
-
-    /// True when two distinct poses explain the data about equally well (symmetric data,
-    /// small overlap): the answer may be the wrong one of them.
-    #[getter]
-    fn ambiguous(&self) -> Option<bool> {
-        self.registration.as_ref().map(|r| r.ambiguous)
-    }
-
-    /// Warnings of the registration (ambiguity, low evidence); also issued as Python warnings.
-    #[getter]
-    fn warnings(&self) -> Vec<String> {
-        self.registration
-            .as_ref()
-            .map_or_else(Vec::new, |r| r.warnings.clone())
-    }
-
-    /// Rank of the chosen coarse hypothesis (0: the coarse winner); None after `refine`.
-    #[getter]
-    fn chosen_rank(&self) -> Option<usize> {
-        self.registration.as_ref().map(|r| r.chosen_rank)
-    }
-
-    /// The verified hypotheses in coarse rank order: dicts with rank, rotation_index,
-    /// match_score, polished_match_score, score, fitness_source, fitness_target, iterations,
-    /// rejected_early, chosen, runner_up, coarse_transformation and transformation.
-    #[getter]
-    fn verified<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
-        let list = PyList::empty(py);
-        let Some(v) = self
-            .registration
-            .as_ref()
-            .and_then(|r| r.verification.as_ref())
-        else {
-            return Ok(list);
-        };
-        for (k, h) in v.hypotheses.iter().enumerate() {
-            let d = PyDict::new(py);
-            d.set_item("rank", h.rank)?;
-            d.set_item("rotation_index", h.rotation_index)?;
-            d.set_item("match_score", h.match_score)?;
-            d.set_item("polished_match_score", h.polished_match_score)?;
-            d.set_item("score", h.evidence.score)?;
-            d.set_item("fitness_source", h.evidence.fitness_source)?;
-            d.set_item("fitness_target", h.evidence.fitness_target)?;
-            d.set_item("iterations", h.iterations)?;
-            d.set_item("rejected_early", h.rejected_early)?;
-            d.set_item("chosen", k == v.chosen)?;
-            d.set_item("runner_up", Some(k) == v.runner_up)?;
-            d.set_item(
-                "coarse_transformation",
-                matrix_array(py, &h.coarse_transform)?,
-            )?;
-            d.set_item("transformation", matrix_array(py, &h.transform)?)?;
-            list.append(d)?;
-        }
-        Ok(list)
-    }
-
-    /// The best distinct hypotheses of the coarse search, best first: dicts
-    /// with rotation_index, score, match_score, offset and transformation.
-    #[getter]
-    fn hypotheses<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
-        let list = PyList::empty(py);
-        if let Some(c) = self.coarse() {
-            for h in &c.hypotheses {
-                list.append(hypothesis_dict(py, h)?)?;
-            }
-        }
-        Ok(list)
-    }
-
-    /// The refinement's quality report as a dict (None without refinement).
-    #[getter]
-    fn report<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyDict>>> {
-        let Some(r) = &self.refined else {
-            return Ok(None);
-        };
-        let q = &r.report;
-        let d = PyDict::new(py);
-        d.set_item("method", format!("{:?}", r.method).to_lowercase())?;
-        d.set_item("fitness_source", q.fitness_source)?;
-        d.set_item("fitness_target", q.fitness_target)?;
-        d.set_item("inlier_rmse", q.inlier_rmse)?;
-        d.set_item("inliers", q.inliers)?;
-        d.set_item("correspondence_distance", q.correspondence_distance)?;
-        d.set_item("iterations", q.iterations)?;
-        d.set_item("converged", q.converged)?;
-        d.set_item("stop_reason", q.stop_reason.clone())?;
-        d.set_item(
-            "information_eigenvalues",
-            q.information_eigenvalues.to_vec(),
-        )?;
-        d.set_item("degenerate", q.degenerate)?;
-        Ok(Some(d))
-    }
-
-    fn __repr__(&self) -> String {
-        let t = self.transform.to_rows();
-        let rows: Vec<String> = t
-            .iter()
-            .map(|r| format!("[{:.6}, {:.6}, {:.6}, {:.6}]", r[0], r[1], r[2], r[3]))
-            .collect();
-        let mut s = String::from("ggs.Result(");
-        if let Some(c) = self.coarse() {
-            s += &format!(
-                "rotation_index={}, score={}, ambiguity={}, ",
-                c.rotation_index,
-                c.score,
-                c.ambiguity.map_or("None".into(), |a| format!("{a:.3}"))
-            );
-        }
-        if let Some(r) = &self.registration {
-            s += &format!(
-                "confidence={:.3}, ambiguous={}, ",
-                r.confidence,
-                if r.ambiguous { "True" } else { "False" }
-            );
-        }
-        if let Some(r) = &self.refined {
-            s += &format!(
-                "fitness={:.4}, inlier_rmse={:.6}, ",
-                r.report.fitness_source, r.report.inlier_rmse
-            );
-        }
-        s += &format!(
-            "total_ms={:.1},\n  transformation=[{}])",
-            self.total_ms,
-            rows.join(",\n                  ")
-        );
-        s
-    }
-}
-
-/// The pipeline configuration of `register`'s arguments.
-#[allow(clippy::too_many_arguments)]
-fn pipeline_config(
-    voxel: Option<f64>,
-    preset: &str,
-    rotations: Option<&str>,
-    refine: Option<&str>,
+/// The pipeline options of `register`, as the Python layer passes them.
+#[derive(FromPyObject)]
+#[pyo3(from_item_all)]
+struct Options {
+    preset: String,
+    rotations: Option<String>,
+    refine: Option<String>,
+    kernel: String,
     threads: usize,
     top_k: Option<usize>,
-    search: Option<&str>,
-    precision: &str,
+    search: Option<String>,
+    precision: String,
     max_hypotheses: Option<usize>,
+    margin: Option<f64>,
     verify: bool,
     polish: bool,
+    max_memory: Option<u64>,
+    distinct_radius: Option<f64>,
+    dedup: Option<f64>,
+    coarse_factor: Option<f64>,
+    coarse_keep: Option<f64>,
+    coarse_keep_min: Option<usize>,
+    max_distance: Option<f64>,
+    distance_quantile: Option<f64>,
+    max_iterations: Option<usize>,
+    neighbors: Option<usize>,
+}
+
+impl Options {
+    /// The coarse-to-fine parameters: the library's defaults changed by those given.
+    fn coarse_to_fine(&self) -> search::CoarseToFine {
+        let d = search::CoarseToFine::default();
+        search::CoarseToFine {
+            factor: self.coarse_factor.unwrap_or(d.factor),
+            keep_fraction: self.coarse_keep.unwrap_or(d.keep_fraction),
+            keep_min: self.coarse_keep_min.unwrap_or(d.keep_min),
+            neighbour_deg: None,
+        }
+    }
+}
+
+fn pipeline_config(
+    voxel: Option<f64>,
+    o: &Options,
+    matrices: Option<&Bound<'_, PyAny>>,
 ) -> PyResult<RegistrationConfig> {
-    let value_err = |e: GgsError| PyValueError::new_err(e.to_string());
-    let preset: Preset = preset.parse().map_err(value_err)?;
+    let preset: Preset = o.preset.parse().map_err(value_err)?;
     let mut cfg = RegistrationConfig::preset(preset);
-    cfg.threads = threads;
+    cfg.threads = o.threads;
     if let Some(v) = voxel {
         cfg.voxel = VoxelSize::Fixed(v);
     }
-    if let Some(name) = rotations {
-        cfg.rotations = RotationSet::named(name).map_err(to_py_err)?;
+    if let Some(name) = &o.rotations {
+        cfg.rotations = RotationSet::named(name).map_err(value_err)?;
     }
-    if let Some(name) = search {
-        cfg.search.mode = search::SearchMode::from_name(name, search::CoarseToFine::default())
-            .map_err(value_err)?;
+    if let Some(m) = matrices {
+        let matrices = rotations_of("rotations", m)?;
+        let step_deg = ggs::rotations::median_nearest_angle(&matrices);
+        cfg.rotations = RotationSet {
+            name: "array".into(),
+            matrices,
+            step_deg,
+        };
     }
-    cfg.search.precision = precision.parse().map_err(value_err)?;
-    if let Some(k) = top_k {
-        if k == 0 {
-            return Err(PyValueError::new_err("top_k must be at least 1"));
+    if let Some(tol) = o.dedup {
+        if !(tol.is_finite() && tol >= 0.0) {
+            return Err(PyValueError::new_err(format!(
+                "dedup must be ≥ 0 degrees, got {tol}"
+            )));
         }
+        cfg.rotations = cfg
+            .rotations
+            .deduplicated(tol.max(ggs::rotations::DUPLICATE_TOL_DEG));
+    }
+    cfg.search.mode = match (&o.search, cfg.search.mode) {
+        (Some(name), _) => {
+            search::SearchMode::from_name(name, o.coarse_to_fine()).map_err(value_err)?
+        }
+        (None, search::SearchMode::CoarseToFine(_)) => {
+            search::SearchMode::CoarseToFine(o.coarse_to_fine())
+        }
+        (None, m) => m,
+    };
+    cfg.search.precision = o.precision.parse().map_err(value_err)?;
+    if let Some(k) = o.top_k {
         cfg.search.top_k = k;
     }
-    if !verify {
+    cfg.search.max_memory = o.max_memory;
+    cfg.search.distinct_radius_deg = o.distinct_radius;
+    if !o.verify {
         cfg.verify = None;
     }
-    match (&mut cfg.verify, max_hypotheses) {
-        (_, Some(0)) => return Err(PyValueError::new_err("max_hypotheses must be at least 1")),
-        (Some(v), Some(n)) => v.max_hypotheses = n,
-        (None, Some(_)) => {
-            return Err(PyValueError::new_err(
-                "max_hypotheses needs verification (not with verify=False or preset='paper')",
-            ))
+    match (&mut cfg.verify, o.max_hypotheses, o.margin) {
+        (Some(v), n, m) => {
+            if let Some(n) = n {
+                v.max_hypotheses = n;
+            }
+            if let Some(m) = m {
+                v.margin = m;
+            }
         }
-        _ => {}
+        (None, None, None) => {}
+        (None, _, _) => return Err(PyValueError::new_err(
+            "max_hypotheses and margin need verification (not with verify=False or preset='paper')",
+        )),
     }
-    if polish {
+    if o.polish {
         cfg.polish = Some(pipeline::PolishConfig::default());
     }
-    if let Some(method) = refine {
-        cfg.refine = parse_refine(method, None, None, None, None, threads)?;
-    }
+    let method = match &o.refine {
+        Some(m) => Some(m.as_str()),
+        None => cfg.refine.map(|r| r.method.name()),
+    };
+    cfg.refine = match method {
+        Some(m) => parse_refine(
+            m,
+            o.max_distance,
+            o.distance_quantile,
+            o.max_iterations,
+            o.neighbors,
+            &o.kernel,
+            o.threads,
+        )?,
+        None => None,
+    };
     Ok(cfg)
 }
 
-/// Register `source` onto `target` with no initial guess: coarse grid search over a rotation
-/// set, polish and verification of the distinct hypotheses, refinement of the best.
+/// Register `source` onto `target` (the pipeline); returns the result as a dict.
 #[pyfunction]
-#[pyo3(signature = (source, target, voxel=None, *, preset="default", rotations=None, refine=None, threads=None, top_k=None, search=None, precision="mixed", max_hypotheses=None, verify=true, polish=false))]
-#[allow(clippy::too_many_arguments)]
-fn register(
-    py: Python<'_>,
-    source: &Bound<'_, PyAny>,
-    target: &Bound<'_, PyAny>,
+#[pyo3(signature = (source, target, voxel, options, rotation_matrices=None, progress=None))]
+fn register<'py>(
+    py: Python<'py>,
+    source: &Bound<'py, PyAny>,
+    target: &Bound<'py, PyAny>,
     voxel: Option<f64>,
-    preset: &str,
-    rotations: Option<&str>,
-    refine: Option<&str>,
-    threads: Option<usize>,
-    top_k: Option<usize>,
-    search: Option<&str>,
-    precision: &str,
-    max_hypotheses: Option<usize>,
-    verify: bool,
-    polish: bool,
-) -> PyResult<PyResultObj> {
+    options: Options,
+    rotation_matrices: Option<&Bound<'py, PyAny>>,
+    progress: Option<Py<PyAny>>,
+) -> PyResult<Bound<'py, PyDict>> {
     let t0 = Instant::now();
     let source = Cloud::new(points_of("source", source)?);
     let target = Cloud::new(points_of("target", target)?);
-    let mut cfg = pipeline_config(
-        voxel,
-        preset,
-        rotations,
-        refine,
-        threads.unwrap_or(0),
-        top_k,
-        search,
-        precision,
-        max_hypotheses,
-        verify,
-        polish,
-    )?;
+    let mut cfg = pipeline_config(voxel, &options, rotation_matrices)?;
     let cancel = Arc::new(AtomicBool::new(false));
     cfg.search.cancel = Some(cancel.clone());
-    let reg = run_interruptible(py, &cancel, || pipeline::register(&source, &target, &cfg))?
-        .map_err(to_py_err)?;
-    for w in &reg.warnings {
-        PyErr::warn(
-            py,
-            &py.get_type::<pyo3::exceptions::PyUserWarning>(),
-            &std::ffi::CString::new(format!("ggs: {w}")).expect("no NUL in warnings"),
-            1,
-        )?;
+    let progress = progress.map(|callback| Progress {
+        callback,
+        done: Arc::new(AtomicUsize::new(0)),
+        total: cfg.rotations.len(),
+    });
+    if let Some(p) = &progress {
+        let done = p.done.clone();
+        cfg.search.progress = Some(Arc::new(move |n| done.store(n, Ordering::Relaxed)));
     }
-    Ok(PyResultObj {
-        transform: reg.transform,
-        refined: reg.refine.clone(),
-        registration: Some(reg),
-        total_ms: t0.elapsed().as_secs_f64() * 1e3,
-    })
+    let reg = run_interruptible(py, &cancel, progress.as_ref(), || {
+        pipeline::register(&source, &target, &cfg)
+    })?
+    .map_err(to_py_err)?;
+    let total_ms = t0.elapsed().as_secs_f64() * 1e3;
+    result_dict(
+        py,
+        &reg.transform,
+        Some(&reg),
+        reg.refine.as_ref(),
+        total_ms,
+    )
 }
 
-/// Refine an initial 4×4 transform `init` (`p_target = init · p_source`) by ICP.
+/// Refine `init` by ICP; returns the result as a dict.
 #[pyfunction(name = "refine")]
-#[pyo3(signature = (source, target, init, method="gicp", max_distance=None, distance_quantile=None, max_iterations=None, neighbors=None, threads=None))]
+#[pyo3(signature = (source, target, init, method, max_distance, distance_quantile, max_iterations, neighbors, kernel, threads))]
 #[allow(clippy::too_many_arguments)]
-fn refine_py(
-    py: Python<'_>,
-    source: &Bound<'_, PyAny>,
-    target: &Bound<'_, PyAny>,
-    init: &Bound<'_, PyAny>,
+fn refine_py<'py>(
+    py: Python<'py>,
+    source: &Bound<'py, PyAny>,
+    target: &Bound<'py, PyAny>,
+    init: &Bound<'py, PyAny>,
     method: &str,
     max_distance: Option<f64>,
     distance_quantile: Option<f64>,
     max_iterations: Option<usize>,
     neighbors: Option<usize>,
-    threads: Option<usize>,
-) -> PyResult<PyResultObj> {
+    kernel: &str,
+    threads: usize,
+) -> PyResult<Bound<'py, PyDict>> {
     let t0 = Instant::now();
     let source = Cloud::new(points_of("source", source)?);
     let target = Cloud::new(points_of("target", target)?);
@@ -571,20 +326,17 @@ fn refine_py(
         distance_quantile,
         max_iterations,
         neighbors,
-        threads.unwrap_or(0),
+        kernel,
+        threads,
     )?
     .ok_or_else(|| PyValueError::new_err("refine: method must be gicp, p2plane or p2p"))?;
     let cancel = Arc::new(AtomicBool::new(false));
-    let r = run_interruptible(py, &cancel, || {
+    let r = run_interruptible(py, &cancel, None, || {
         refine::refine(&source, &target, &init, &cfg)
     })?
     .map_err(to_py_err)?;
-    Ok(PyResultObj {
-        transform: r.transform,
-        registration: None,
-        refined: Some(r),
-        total_ms: t0.elapsed().as_secs_f64() * 1e3,
-    })
+    let total_ms = t0.elapsed().as_secs_f64() * 1e3;
+    result_dict(py, &r.transform, None, Some(&r), total_ms)
 }
 
 fn parse_format(format: Option<&str>) -> PyResult<Option<Format>> {
@@ -597,12 +349,9 @@ fn parse_format(format: Option<&str>) -> PyResult<Option<Format>> {
         .transpose()
 }
 
-/// Read a point cloud (any format ggs reads) as an (N, 3) float64 array. E57: `scan` picks
-/// one scan (default: all, each moved by its pose unless `apply_pose=False`); NPZ: `array`
-/// names the array; meshes: `sample_mesh=N` samples N points on the faces.
+/// Read a point cloud as an (N, 3) float64 array.
 #[pyfunction]
-#[pyo3(signature = (path, format=None, *, scan=None, apply_pose=true, array=None, sample_mesh=None))]
-#[allow(clippy::too_many_arguments)]
+#[pyo3(signature = (path, format, scan, apply_pose, array, sample_mesh))]
 fn read_point_cloud<'py>(
     py: Python<'py>,
     path: PathBuf,
@@ -629,10 +378,9 @@ fn read_point_cloud<'py>(
     points_array(py, &loaded.cloud.points)
 }
 
-/// Write an (N, 3) array to a point-cloud file, atomically; the format follows the
-/// extension (ply, pcd, xyz/txt/pts/csv, npy, bin, las, laz, e57) unless given.
+/// Write an (N, 3) array to a point-cloud file, atomically.
 #[pyfunction]
-#[pyo3(signature = (path, points, format=None))]
+#[pyo3(signature = (path, points, format))]
 fn write_point_cloud(
     py: Python<'_>,
     path: PathBuf,
@@ -648,7 +396,7 @@ fn write_point_cloud(
 /// A built-in rotation set as an (N, 3, 3) float64 array.
 #[pyfunction]
 fn rotation_set<'py>(py: Python<'py>, name: &str) -> PyResult<Bound<'py, PyAny>> {
-    let set = RotationSet::named(name).map_err(to_py_err)?;
+    let set = RotationSet::named(name).map_err(value_err)?;
     let flat: Vec<f64> = set
         .matrices
         .iter()
@@ -657,6 +405,69 @@ fn rotation_set<'py>(py: Python<'py>, name: &str) -> PyResult<Bound<'py, PyAny>>
     Ok(PyArray1::from_vec(py, flat)
         .reshape([set.len(), 3, 3])?
         .into_any())
+}
+
+/// One point per occupied cell of edge `voxel`: the mean of its points.
+#[pyfunction]
+fn voxel_downsample<'py>(
+    py: Python<'py>,
+    points: &Bound<'py, PyAny>,
+    voxel: f64,
+) -> PyResult<Bound<'py, PyAny>> {
+    if !(voxel.is_finite() && voxel > 0.0) {
+        return Err(PyValueError::new_err(format!(
+            "voxel: must be a positive number, got {voxel}"
+        )));
+    }
+    let pts = points_of("points", points)?;
+    let out = py.detach(|| ggs::voxel::cell_centroids(&pts, voxel));
+    points_array(py, &out)
+}
+
+/// Unit normals from the `neighbors` nearest points of each point (sign arbitrary).
+#[pyfunction]
+fn estimate_normals<'py>(
+    py: Python<'py>,
+    points: &Bound<'py, PyAny>,
+    neighbors: usize,
+) -> PyResult<Bound<'py, PyAny>> {
+    if neighbors < 3 {
+        return Err(PyValueError::new_err(
+            "neighbors: need at least 3 for a normal",
+        ));
+    }
+    let pts = points_of("points", points)?;
+    let normals = py.detach(|| {
+        let index = refine::neighbors::PointIndex::new(&pts);
+        refine::covariance::local_shapes(&pts, &index, neighbors, 1e-3)
+            .iter()
+            .map(|s| [s.normal.x, s.normal.y, s.normal.z])
+            .collect::<Vec<_>>()
+    });
+    points_array(py, &normals)
+}
+
+/// Open3D-style evaluation of `transformation` at `max_distance`, as a dict.
+#[pyfunction]
+fn evaluate<'py>(
+    py: Python<'py>,
+    source: &Bound<'py, PyAny>,
+    target: &Bound<'py, PyAny>,
+    transformation: &Bound<'py, PyAny>,
+    max_distance: f64,
+) -> PyResult<Bound<'py, PyDict>> {
+    let source = Cloud::new(points_of("source", source)?);
+    let target = Cloud::new(points_of("target", target)?);
+    let t = matrix_of("transformation", transformation)?;
+    let e = py
+        .detach(|| refine::evaluate::evaluate(&source, &target, &t, max_distance))
+        .map_err(to_py_err)?;
+    let d = PyDict::new(py);
+    d.set_item("fitness", e.fitness_source)?;
+    d.set_item("fitness_target", e.fitness_target)?;
+    d.set_item("inlier_rmse", e.inlier_rmse)?;
+    d.set_item("inliers", e.inliers)?;
+    Ok(d)
 }
 
 /// Relative rotation error between two 4×4 transforms, degrees.
@@ -680,12 +491,14 @@ fn rte(estimate: &Bound<'_, PyAny>, truth: &Bound<'_, PyAny>) -> PyResult<f64> {
 /// The native part of the `ggs` package.
 #[pymodule]
 fn _ggs(m: &Bound<'_, PyModule>) -> PyResult<()> {
-    m.add_class::<PyResultObj>()?;
     m.add_function(wrap_pyfunction!(register, m)?)?;
     m.add_function(wrap_pyfunction!(refine_py, m)?)?;
     m.add_function(wrap_pyfunction!(read_point_cloud, m)?)?;
     m.add_function(wrap_pyfunction!(write_point_cloud, m)?)?;
     m.add_function(wrap_pyfunction!(rotation_set, m)?)?;
+    m.add_function(wrap_pyfunction!(voxel_downsample, m)?)?;
+    m.add_function(wrap_pyfunction!(estimate_normals, m)?)?;
+    m.add_function(wrap_pyfunction!(evaluate, m)?)?;
     m.add_function(wrap_pyfunction!(rre, m)?)?;
     m.add_function(wrap_pyfunction!(rte, m)?)?;
     m.add("ROTATION_SETS", ggs::rotations::NAMES.to_vec())?;

@@ -1,0 +1,466 @@
+"""The public Python API of ggs (re-exported by ``ggs``); the native engine is ``ggs._ggs``."""
+
+from __future__ import annotations
+
+import copy
+import os
+import re
+import warnings
+from typing import (
+    Any,
+    Callable,
+    Dict,
+    Iterable,
+    List,
+    Literal,
+    NamedTuple,
+    Optional,
+    Sequence,
+    Tuple,
+    Union,
+)
+
+import numpy as np
+import numpy.typing as npt
+
+from . import _ggs
+
+Preset = Literal["default", "paper"]
+RotationSetName = Literal[
+    "hopf15-id", "limited15", "full15", "limited10", "hopf15", "hopf15-dedup", "ico162-s10"
+]
+Method = Literal["gicp", "p2plane", "p2p"]
+RefineMethod = Literal["gicp", "p2plane", "p2p", "none"]
+SearchMode = Literal["exhaustive", "coarse-to-fine"]
+Precision = Literal["mixed", "f64"]
+#: (N, 3) float32/float64 arrays, anything ``numpy.asarray`` turns into one (lists, tuples,
+#: torch tensors on the CPU), or an object with a ``.points`` attribute (Open3D PointCloud).
+PointsLike = Any
+Matrix4 = npt.NDArray[np.float64]
+Points = npt.NDArray[np.float64]
+StrPath = Union[str, "os.PathLike[str]"]
+ProgressCallback = Callable[[int, int], None]
+
+
+class GgsWarning(UserWarning):
+    """A result that is probably wrong or not unique: ambiguous poses, low evidence,
+    degenerate geometry. Filter with ``warnings.simplefilter("ignore", ggs.GgsWarning)``."""
+
+
+def as_points(obj: PointsLike, name: str = "points") -> npt.NDArray[Any]:
+    """``obj`` as an (N, 3) float array: float32/float64 arrays pass as they are, an object
+    with ``.points`` (Open3D) gives its points, anything else goes through ``numpy.asarray``.
+    The shape is checked by the engine (a ValueError naming ``name``)."""
+    pts = getattr(obj, "points", obj)
+    if isinstance(pts, np.ndarray) and pts.dtype in (np.float32, np.float64):
+        return pts
+    try:
+        return np.asarray(pts, dtype=np.float64)
+    except (TypeError, ValueError) as e:
+        raise ValueError(f"{name}: cannot read it as an (N, 3) array of floats ({e})") from None
+
+
+def _threads(threads: Optional[int]) -> int:
+    if threads is None:
+        return 0
+    if not isinstance(threads, int) or threads < 0:
+        raise ValueError(f"threads must be None (all cores) or an integer ≥ 0, got {threads!r}")
+    return threads
+
+
+_SIZE = re.compile(r"^\s*(\d+(?:\.\d+)?)\s*([KMGT]?)(?:i?B)?\s*$", re.IGNORECASE)
+
+
+def _bytes(size: Union[int, str, None]) -> Optional[int]:
+    if size is None or isinstance(size, int):
+        if isinstance(size, int) and size <= 0:
+            raise ValueError(f"max_memory must be positive, got {size}")
+        return size
+    m = _SIZE.match(size)
+    if not m:
+        raise ValueError(f"max_memory: cannot read {size!r} (try 2G, 512M or a number of bytes)")
+    scale = 1024 ** "_KMGT".index(m.group(2).upper() or "_")
+    return int(float(m.group(1)) * scale)
+
+
+class Result:
+    """The outcome of :func:`register` or :func:`refine`; picklable, and ``to_dict()`` gives
+    every field as plain Python and numpy values."""
+
+    def __init__(self, fields: Dict[str, Any]) -> None:
+        self._fields = fields
+
+    @property
+    def transformation(self) -> Matrix4:
+        """The final 4×4 float64 transform, ``p_target = T · p_source``."""
+        return self._fields["transformation"]  # type: ignore[no-any-return]
+
+    @property
+    def coarse_transformation(self) -> Optional[Matrix4]:
+        """The chosen hypothesis's grid transform, before ICP (None after :func:`refine`)."""
+        return self._fields["coarse_transformation"]  # type: ignore[no-any-return]
+
+    @property
+    def fitness(self) -> Optional[float]:
+        """Share of source points within the correspondence distance after refinement (None
+        with ``refine="none"``)."""
+        return self._fields["fitness"]  # type: ignore[no-any-return]
+
+    @property
+    def fitness_target(self) -> Optional[float]:
+        """Share of target points matched after refinement."""
+        return self._fields["fitness_target"]  # type: ignore[no-any-return]
+
+    @property
+    def inlier_rmse(self) -> Optional[float]:
+        """RMS distance of the inlier correspondences after refinement, in the clouds' units."""
+        return self._fields["inlier_rmse"]  # type: ignore[no-any-return]
+
+    @property
+    def converged(self) -> Optional[bool]:
+        """Whether the refinement converged."""
+        return self._fields["converged"]  # type: ignore[no-any-return]
+
+    @property
+    def score(self) -> Optional[int]:
+        """The coarse winner's exact integer score (None after :func:`refine`)."""
+        return self._fields["score"]  # type: ignore[no-any-return]
+
+    @property
+    def ambiguity(self) -> Optional[float]:
+        """Coarse ambiguity: the best distinct rotation's match score over the winner's."""
+        return self._fields["ambiguity"]  # type: ignore[no-any-return]
+
+    @property
+    def rotation_index(self) -> Optional[int]:
+        """Index of the coarse winner in the rotation set."""
+        return self._fields["rotation_index"]  # type: ignore[no-any-return]
+
+    @property
+    def voxel(self) -> Optional[float]:
+        """The voxel size of the coarse search."""
+        return self._fields["voxel"]  # type: ignore[no-any-return]
+
+    @property
+    def confidence(self) -> Optional[float]:
+        """In [0, 1]: 1 − (verification score of the best distinct runner-up) / (the chosen
+        pose's); without a verified runner-up, 1 − the coarse ambiguity."""
+        return self._fields["confidence"]  # type: ignore[no-any-return]
+
+    @property
+    def ambiguous(self) -> Optional[bool]:
+        """True when two distinct poses explain the data about equally well."""
+        return self._fields["ambiguous"]  # type: ignore[no-any-return]
+
+    @property
+    def warnings(self) -> List[str]:
+        """What the user should know (also issued as :class:`GgsWarning`)."""
+        return self._fields["warnings"]  # type: ignore[no-any-return]
+
+    @property
+    def chosen_rank(self) -> Optional[int]:
+        """Coarse rank of the chosen hypothesis (0: the coarse winner)."""
+        return self._fields["chosen_rank"]  # type: ignore[no-any-return]
+
+    @property
+    def hypotheses(self) -> List[Dict[str, Any]]:
+        """The best distinct coarse hypotheses, best first (rotation_index, score,
+        match_score, offset, transformation)."""
+        return self._fields["hypotheses"]  # type: ignore[no-any-return]
+
+    @property
+    def verified(self) -> List[Dict[str, Any]]:
+        """The verified hypotheses in coarse rank order (rank, rotation_index, match_score,
+        polished_match_score, score, fitness_source, fitness_target, iterations,
+        rejected_early, chosen, runner_up, coarse_transformation, transformation)."""
+        return self._fields["verified"]  # type: ignore[no-any-return]
+
+    @property
+    def report(self) -> Optional[Dict[str, Any]]:
+        """The refinement's quality report (fitness both ways, RMSE, eigenvalues, ...)."""
+        return self._fields["report"]  # type: ignore[no-any-return]
+
+    @property
+    def timings(self) -> Dict[str, float]:
+        """Milliseconds, the same keys in every mode (0.0 for a stage that did not run):
+        coarse_ms, target_ms, extents_ms, search_ms, verify_ms, refine_ms, total_ms."""
+        return self._fields["timings"]  # type: ignore[no-any-return]
+
+    def to_dict(self) -> Dict[str, Any]:
+        """Every field, deep-copied."""
+        return copy.deepcopy(self._fields)
+
+    def __repr__(self) -> str:
+        f = self._fields
+        parts = []
+        for key in ("rotation_index", "score", "confidence", "ambiguous", "fitness", "inlier_rmse"):
+            v = f.get(key)
+            if v is not None:
+                parts.append(f"{key}={v:.4g}" if isinstance(v, float) else f"{key}={v}")
+        rows = np.array2string(f["transformation"], precision=6, suppress_small=True)
+        return f"ggs.Result({', '.join(parts)},\n  transformation=\n{rows})"
+
+
+def _warn(result: Result) -> Result:
+    for w in result.warnings:
+        warnings.warn(w, GgsWarning, stacklevel=3)
+    report = result.report
+    if report is not None and report["degenerate"]:
+        warnings.warn(
+            "degenerate geometry: some motion is barely constrained by the data "
+            "(see report['information_eigenvalues'])",
+            GgsWarning,
+            stacklevel=3,
+        )
+    return result
+
+
+def register(
+    source: PointsLike,
+    target: PointsLike,
+    voxel: Optional[float] = None,
+    *,
+    preset: Preset = "default",
+    rotations: Union[RotationSetName, str, npt.NDArray[np.float64], None] = None,
+    refine: Optional[RefineMethod] = None,
+    kernel: str = "none",
+    threads: Optional[int] = None,
+    top_k: Optional[int] = None,
+    search: Optional[SearchMode] = None,
+    precision: Precision = "mixed",
+    max_hypotheses: Optional[int] = None,
+    margin: Optional[float] = None,
+    verify: bool = True,
+    polish: bool = False,
+    max_memory: Union[int, str, None] = None,
+    distinct_radius: Optional[float] = None,
+    dedup: Optional[float] = None,
+    coarse_factor: Optional[float] = None,
+    coarse_keep: Optional[float] = None,
+    coarse_keep_min: Optional[int] = None,
+    max_distance: Optional[float] = None,
+    distance_quantile: Optional[float] = None,
+    max_iterations: Optional[int] = None,
+    neighbors: Optional[int] = None,
+    progress: Optional[ProgressCallback] = None,
+) -> Result:
+    """Register ``source`` onto ``target`` with no initial guess.
+
+    source, target: (N, 3) points: arrays, array-likes, or objects with ``.points`` (Open3D).
+    voxel: grid size in the clouds' units (default: the target's longest side / 32).
+    preset: ``"default"`` — the full-SO(3) rotation set ``hopf15-id``, the coarse-to-fine
+      search, then every distinct coarse hypothesis whose match score is at least half the
+      winner's (at most 8) refined on thinned clouds and scored by how much of both clouds
+      lies within a fixed distance of the other, the best refined by GICP — or ``"paper"``,
+      the GGS paper's configuration (``limited15``, exhaustive, one hypothesis, GICP).
+    The other arguments change the preset:
+    rotations: a name of ``ROTATION_SETS`` or an (N, 3, 3) array of rotation matrices.
+    refine: ``"gicp"``, ``"p2plane"``, ``"p2p"`` or ``"none"``; kernel: ``"none"``,
+      ``"huber:K"``, ``"cauchy:K"``, ``"geman-mcclure:K"`` (K in cloud units).
+    search: ``"exhaustive"`` or ``"coarse-to-fine"``; precision: ``"mixed"`` (f32 with proven
+      error bounds, f64 where they matter: the same picks as ``"f64"``) or ``"f64"``.
+    max_hypotheses, margin: how many distinct hypotheses are verified (at most; default 8) and
+      which (match score ≥ margin × the winner's; default 0.5); verify=False takes the coarse
+      winner; polish=True moves each hypothesis on a finer rotation grid first.
+    top_k: coarse hypotheses reported; distinct_radius: degrees that make two rotations
+      distinct (default 2 × the set's step); max_memory: bytes, or ``"2G"``, ``"512M"``;
+      dedup: drop rotations within this many degrees of an earlier one.
+    coarse_factor, coarse_keep, coarse_keep_min: the coarse-to-fine search's coarse voxel
+      (2 × voxel), kept fraction (0.02) and minimum kept (16).
+    max_distance, distance_quantile, max_iterations, neighbors: the final refinement's, as in
+      :func:`refine`.
+    threads: worker threads (None: all cores); the result does not depend on it.
+    progress: called as ``progress(rotations_scored, total)`` while the search runs.
+
+    Returns a :class:`Result`. Ambiguous or low-evidence results issue a :class:`GgsWarning`.
+    Raises ValueError for bad points or options, KeyboardInterrupt on Ctrl-C.
+    """
+    matrices = None
+    name: Optional[str] = None
+    if isinstance(rotations, str) or rotations is None:
+        name = rotations
+    else:
+        matrices = np.ascontiguousarray(rotations, dtype=np.float64)
+    options = {
+        "preset": preset,
+        "rotations": name,
+        "refine": refine,
+        "kernel": kernel,
+        "threads": _threads(threads),
+        "top_k": top_k,
+        "search": search,
+        "precision": precision,
+        "max_hypotheses": max_hypotheses,
+        "margin": margin,
+        "verify": verify,
+        "polish": polish,
+        "max_memory": _bytes(max_memory),
+        "distinct_radius": distinct_radius,
+        "dedup": dedup,
+        "coarse_factor": coarse_factor,
+        "coarse_keep": coarse_keep,
+        "coarse_keep_min": coarse_keep_min,
+        "max_distance": max_distance,
+        "distance_quantile": distance_quantile,
+        "max_iterations": max_iterations,
+        "neighbors": neighbors,
+    }
+    if top_k is not None and top_k < 1:
+        raise ValueError("top_k must be at least 1")
+    if max_hypotheses is not None and max_hypotheses < 1:
+        raise ValueError("max_hypotheses must be at least 1")
+    fields = _ggs.register(
+        as_points(source, "source"),
+        as_points(target, "target"),
+        voxel,
+        options,
+        matrices,
+        progress,
+    )
+    return _warn(Result(fields))
+
+
+def refine(
+    source: PointsLike,
+    target: PointsLike,
+    init: npt.ArrayLike,
+    method: Method = "gicp",
+    *,
+    max_distance: Optional[float] = None,
+    distance_quantile: Optional[float] = None,
+    max_iterations: Optional[int] = None,
+    neighbors: Optional[int] = None,
+    kernel: str = "none",
+    threads: Optional[int] = None,
+) -> Result:
+    """Refine an initial 4×4 transform ``init`` (``p_target = init · p_source``) by ICP.
+
+    method: ``"gicp"``, ``"p2plane"`` or ``"p2p"``. max_distance: a fixed correspondence
+    distance (default: the ``distance_quantile``, 0.25, of the nearest-neighbour distances at
+    the start); max_iterations: 500; neighbors (normals and covariances): 20; kernel as in
+    :func:`register`. Returns a :class:`Result` (its coarse fields are None).
+    """
+    fields = _ggs.refine(
+        as_points(source, "source"),
+        as_points(target, "target"),
+        np.ascontiguousarray(init, dtype=np.float64),
+        method,
+        max_distance,
+        distance_quantile,
+        max_iterations,
+        neighbors,
+        kernel,
+        _threads(threads),
+    )
+    return _warn(Result(fields))
+
+
+PairLike = Tuple[Union[PointsLike, StrPath], Union[PointsLike, StrPath]]
+
+
+def _load(x: Union[PointsLike, StrPath]) -> PointsLike:
+    return read_point_cloud(x) if isinstance(x, (str, os.PathLike)) else x
+
+
+def register_many(
+    pairs: Iterable[PairLike],
+    voxel: Optional[float] = None,
+    *,
+    on_error: Literal["raise", "return"] = "raise",
+    progress: Optional[Callable[[int, Union[Result, Exception]], None]] = None,
+    **options: Any,
+) -> List[Union[Result, Exception]]:
+    """Register every ``(source, target)`` of ``pairs`` (arrays, point-like objects or file
+    paths, read with :func:`read_point_cloud`) with the same options as :func:`register`.
+    ``on_error="return"`` puts the exception of a failing pair in its place instead of
+    raising; ``progress(index, result_or_error)`` is called after each pair."""
+    out: List[Union[Result, Exception]] = []
+    for k, (src, tgt) in enumerate(pairs):
+        try:
+            r: Union[Result, Exception] = register(_load(src), _load(tgt), voxel, **options)
+        except (ValueError, OSError) as e:
+            if on_error == "raise":
+                raise
+            r = e
+        out.append(r)
+        if progress is not None:
+            progress(k, r)
+    return out
+
+
+def read_point_cloud(
+    path: StrPath,
+    format: Optional[str] = None,
+    *,
+    scan: Optional[int] = None,
+    apply_pose: bool = True,
+    array: Optional[str] = None,
+    sample_mesh: Optional[int] = None,
+) -> Points:
+    """Read any format ggs reads (PLY, PCD, XYZ/TXT/CSV/PTS, NPY/NPZ, KITTI .bin, LAS/LAZ,
+    E57, OBJ, STL) as an (N, 3) float64 array. E57: ``scan`` picks one scan (default all,
+    each moved by its pose unless ``apply_pose=False``); NPZ: ``array`` names the array;
+    meshes: ``sample_mesh=N`` samples N points on the faces. A missing file raises
+    FileNotFoundError with ``filename`` set; a malformed one ValueError naming the line."""
+    return _ggs.read_point_cloud(os.fspath(path), format, scan, apply_pose, array, sample_mesh)
+
+
+def write_point_cloud(path: StrPath, points: PointsLike, format: Optional[str] = None) -> None:
+    """Write (N, 3) points atomically; the format follows the extension (ply, pcd,
+    xyz/txt/pts/csv, npy, bin, las, laz, e57) unless given."""
+    _ggs.write_point_cloud(os.fspath(path), as_points(points), format)
+
+
+def rotation_set(name: RotationSetName) -> npt.NDArray[np.float64]:
+    """A built-in rotation set as an (N, 3, 3) float64 array."""
+    return _ggs.rotation_set(name)
+
+
+def voxel_downsample(points: PointsLike, voxel: float) -> Points:
+    """One point per occupied cell of edge ``voxel`` (cells anchored at the points' minimum):
+    the mean of the points in it, in increasing cell order."""
+    return _ggs.voxel_downsample(as_points(points), voxel)
+
+
+def estimate_normals(points: PointsLike, neighbors: int = 20) -> Points:
+    """Unit normals (N, 3) from the ``neighbors`` nearest points of each point: the
+    eigenvector of the smallest eigenvalue of their covariance (sign arbitrary)."""
+    return _ggs.estimate_normals(as_points(points), neighbors)
+
+
+class Evaluation(NamedTuple):
+    """:func:`evaluate`'s figures (Open3D's ``evaluate_registration`` plus the target side)."""
+
+    fitness: float
+    """Share of source points within ``max_distance`` of a target point after ``T``."""
+    fitness_target: float
+    """Share of target points within ``max_distance`` of a moved source point."""
+    inlier_rmse: float
+    """RMS distance of those source inliers, in the clouds' units."""
+    inliers: int
+
+
+def evaluate(
+    source: PointsLike, target: PointsLike, transformation: npt.ArrayLike, max_distance: float
+) -> Evaluation:
+    """How well ``transformation`` aligns ``source`` onto ``target`` at ``max_distance``."""
+    d = _ggs.evaluate(
+        as_points(source, "source"),
+        as_points(target, "target"),
+        np.ascontiguousarray(transformation, dtype=np.float64),
+        max_distance,
+    )
+    return Evaluation(d["fitness"], d["fitness_target"], d["inlier_rmse"], d["inliers"])
+
+
+def transform_points(points: PointsLike, transformation: npt.ArrayLike) -> Points:
+    """``points`` moved by the 4×4 ``transformation``: ``R·p + t`` for every row."""
+    p = np.asarray(as_points(points), dtype=np.float64)
+    t = np.asarray(transformation, dtype=np.float64)
+    if t.shape != (4, 4):
+        raise ValueError(f"transformation: expected a 4×4 array, got shape {t.shape}")
+    moved: Points = p @ t[:3, :3].T + t[:3, 3]
+    return moved
+
+
+__all__: Sequence[str] = []
