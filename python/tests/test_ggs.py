@@ -394,3 +394,25 @@ def test_readme_examples_run_as_written(doc, monkeypatch):
     monkeypatch.chdir(ROOT)
     for code in blocks:
         exec(compile(code, doc, "exec"), {})
+
+
+def test_a_scan_moved_by_random_rotations_is_solved_with_no_option():
+    # A user's own arrays: bun000 moved by uniform random rotations (up to 180°) and shifts,
+    # registered back onto itself with nothing but the defaults (auto voxel included).
+    target = ggs.read_point_cloud(DATA / "bun000.ply")
+    rng = np.random.default_rng(7)
+    for _ in range(3):
+        w, x, y, z = rng.normal(size=4) / 1.0
+        n = np.sqrt(w * w + x * x + y * y + z * z)
+        w, x, y, z = w / n, x / n, y / n, z / n
+        t = np.eye(4)
+        t[:3, :3] = [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+        ]
+        t[:3, 3] = rng.uniform(-0.1, 0.1, 3)
+        source = ggs.transform_points(target, np.linalg.inv(t))
+        r = ggs.register(source, target)
+        assert ggs.metrics.rre(r.transformation, t) < 0.1 and ggs.metrics.rte(r.transformation, t) < 1e-3
+        assert not r.ambiguous
