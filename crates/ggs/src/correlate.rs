@@ -1,13 +1,13 @@
-//! FFT cross-correlation of a source occupancy grid with the target kernel (SPEC §2 step 4).
+//! FFT cross-correlation of a source occupancy grid with the target kernel (docs/coarse-search.md, step 3).
 //!
-//! With PV = 5 and NV = PPV = −1 the score of SPEC §4 splits into a constant and an exact
+//! With PV = 5 and NV = PPV = −1 the score (docs/coarse-search.md) splits into a constant and an exact
 //! integer *match score*
 //!
 //! `m(a) = Σ_u O_s[a − C + u] · (6·O_k[u] − 1) = 6·n11(a) − W(a) = 5·n11(a) − n01(a)`,
 //!
 //! where `O_s`, `O_k` are the 0/1 occupancies of source and kernel, `C = ceil(NR/2) − 1`,
 //! `n11` counts kernel-occupied cells over source-occupied cells and `W` the source-occupied
-//! cells inside the kernel window. The SPEC score is `|K| − 6·n_k + 6·m(a)` with `|K|` the
+//! cells inside the kernel window. The score `Σ S_pad·K` is `|K| − 6·n_k + 6·m(a)` with `|K|` the
 //! kernel's cell count and `n_k` its occupied cells. ggs computes `m` for every offset
 //! `a ∈ [0, NS)` by one circular correlation of length `L_d ≥ NS_d + floor(NR_d/2)` per axis
 //! (no wrap-around reaches a valid offset: padding with −1 contributes to the constant only,
@@ -693,7 +693,7 @@ impl CpuCorrelator<f64> {
     }
 }
 
-/// Brute-force match scores, straight from the definition (SPEC §2 steps 3–4): pad the
+/// Brute-force match scores, straight from the definition (docs/coarse-search.md, step 3): pad the
 /// source "same" with −1, correlate with the ±1/5 kernel, and subtract the constant
 /// `|K| − 6·n_k` then divide by 6. Returns `m(a)` in x-major C order. For tests.
 pub fn brute_force_scores(source: &Occupancy, kernel: &Occupancy) -> Vec<i64> {
@@ -731,7 +731,7 @@ pub fn brute_force_scores(source: &Occupancy, kernel: &Occupancy) -> Vec<i64> {
                     }
                 }
                 let m = s - (k_cells - 6 * n_k);
-                assert_eq!(m % 6, 0, "SPEC score minus constant is a multiple of 6");
+                assert_eq!(m % 6, 0, "score minus constant is a multiple of 6");
                 out.push(m / 6);
             }
         }

@@ -1,4 +1,4 @@
-//! Registration error metrics (SPEC §7).
+//! Registration error metrics (docs/benchmarks.md).
 //!
 //! - `RRE = degrees(arccos(clip((trace(R_estᵀ·R_gt) − 1)/2, −1, 1)))`, in degrees;
 //! - `RTE = ‖t_gt − t_est‖₂`, in the clouds' units;
@@ -16,7 +16,7 @@ pub fn rte(estimate: &Rigid, truth: &Rigid) -> f64 {
     (truth.translation - estimate.translation).norm()
 }
 
-/// Strict success test of SPEC §7.
+/// Strict success test: RRE < τ_r and RTE < τ_t.
 pub fn is_success(rre_deg: f64, rte: f64, max_rre_deg: f64, max_rte: f64) -> bool {
     rre_deg < max_rre_deg && rte < max_rte
 }

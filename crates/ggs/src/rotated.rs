@@ -1,4 +1,4 @@
-//! The centred source cloud, prepared for being rotated many times (SPEC §2 step 2).
+//! The centred source cloud, prepared for being rotated many times (docs/coarse-search.md, step 2).
 //!
 //! Points are grouped into spatial clusters (a coarse 8×8×8 grid over the cloud's box) so
 //! the exact extents of `R·(X − c)` for a rotation come from a few clusters: a cluster whose

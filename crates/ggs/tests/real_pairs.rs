@@ -43,7 +43,7 @@ fn bound(name: &str, voxel: f64) -> Option<(f64, f64)> {
 
 /// Bound after GICP from the limited15 coarse result: Stanford and PCL scans whose coarse
 /// pick is within 15° and 5 voxels end within 1° and 2 mm (bunny_chin_bun000, where the
-/// original's refinement stayed at 15°, included); the others within the SPEC §7 thresholds
+/// original's refinement stayed at 15°, included); the others within the thresholds (docs/benchmarks.md)
 /// of their benchmark (3DMatch 15° / 0.30 m, KITTI 5° / 0.6 m, ETH 5° / 0.30 m).
 fn refined_bound(name: &str, coarse_rre: f64, coarse_rte: f64, voxel: f64) -> Option<(f64, f64)> {
     match name {

@@ -1,5 +1,5 @@
 //! Benchmark runners: the published protocols and generic manifests, run pair by pair into a
-//! resumable CSV, with a summary in the layout of the papers' tables (SPEC §7).
+//! resumable CSV, with a summary in the layout of the papers' tables (docs/benchmarks.md).
 //!
 //! - [`protocol`]: pair lists, ground truth and default parameters of each protocol;
 //! - [`row`]: one pair's result ([`PairRow`]) and the resumable CSV file;

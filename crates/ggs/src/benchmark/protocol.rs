@@ -1,4 +1,4 @@
-//! The published benchmark protocols (SPEC §7–8): pair lists, ground truth and defaults.
+//! The published benchmark protocols (docs/benchmarks.md): pair lists, ground truth and defaults.
 //!
 //! The metadata ships inside the library (`crates/ggs/protocols/`, see its README for the
 //! provenance); only the point clouds come from the user's data directory:
@@ -43,7 +43,7 @@ pub enum Protocol {
     Manifest(PathBuf),
 }
 
-/// Default parameters of a protocol (SPEC §7), all overridable.
+/// Default parameters of a protocol (docs/benchmarks.md), all overridable.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Defaults {
     /// Voxel size in the clouds' units; `None`: the manifest's per-pair value.
@@ -94,7 +94,7 @@ impl Protocol {
         }
     }
 
-    /// SPEC §7 defaults. KITTI's RTE threshold is the later 0.6 m (the GGS paper used 2 m);
+    /// The protocols' published thresholds and voxel sizes. KITTI's RTE threshold is the later 0.6 m (the GGS paper used 2 m);
     /// FAUST-partial needs a full SO(3) set (its rotations span ±180°). A generic manifest
     /// succeeds within 10° and 3 voxels of the pair's own voxel size.
     pub fn defaults(&self) -> Defaults {

@@ -1,4 +1,4 @@
-//! Benchmark summaries (SPEC §7): registration recall, mean errors, the Markdown table in
+//! Benchmark summaries (docs/benchmarks.md): registration recall, mean errors, the Markdown table in
 //! the layout of the papers' tables, and recall-versus-threshold curves as SVG.
 //!
 //! - RR = successes / pairs, over every pair of the run (a pair that failed to run counts as

@@ -31,7 +31,7 @@ pub struct PairRow {
     /// Errors of the coarse search alone.
     pub coarse_rre: f64,
     pub coarse_rte: f64,
-    /// SPEC score of the coarse pick and the ambiguity ratio.
+    /// Score `Σ S_pad·K` of the coarse pick and the ambiguity ratio.
     pub score: i64,
     pub ambiguity: Option<f64>,
     /// Quality report of the refinement (absent with `--refine none`).

@@ -3,13 +3,13 @@
 //! With the camera at the origin (`v = p − camera`), every point is flipped about a sphere of
 //! radius R: `v' = v + 2(R − ‖v‖)·v/‖v‖`. A point is visible when its flipped image is a
 //! vertex of the convex hull of all flipped points and the camera. R sets how much of a
-//! surface's concavity counts as occluding; SPEC §9 takes R = 1000 × the scan's bounding-box
+//! surface's concavity counts as occluding; the FAUST-partial protocol takes R = 1000 × the scan's bounding-box
 //! diagonal.
 
 use super::hull::convex_hull;
 use crate::cloud::{bounds, Point};
 
-/// The flip radius of SPEC §9: `factor` × the bounding-box diagonal of `points`.
+/// The flip radius of the FAUST-partial protocol: `factor` × the bounding-box diagonal of `points`.
 pub fn flip_radius(points: &[Point], factor: f64) -> f64 {
     bounds(points).map_or(0.0, |b| {
         let d = [

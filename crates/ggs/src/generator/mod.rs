@@ -1,4 +1,4 @@
-//! The FAUST-partial benchmark generator (SPEC §9): partial views of scans or meshes by
+//! The FAUST-partial benchmark generator (docs/generator.md): partial views of scans or meshes by
 //! hidden point removal from cameras on an icosphere, view pairs filtered by overlap, and a
 //! seeded ground-truth motion per pair.
 //!
@@ -87,7 +87,7 @@ pub struct GeneratorConfig {
     /// Use a mesh's vertices as its points instead of sampling its surface (a FAUST scan
     /// stored as a PLY mesh, used as the published FPv1 used it).
     pub mesh_vertices: bool,
-    /// Flip radius factor: R = factor × the scan's bounding-box diagonal (1000 in SPEC §9).
+    /// Flip radius factor: R = factor × the scan's bounding-box diagonal (1000 in the FAUST-partial protocol).
     pub flip_factor: f64,
     /// Voxel size written to the manifest (6 cm for human bodies).
     pub voxel: f64,

@@ -1,4 +1,4 @@
-//! Overlap of two views of one scan, from their visible-point index sets (SPEC §9).
+//! Overlap of two views of one scan, from their visible-point index sets (docs/generator.md).
 
 /// `|I_a ∩ I_b| / |I_a| × 100`, for ascending index lists: the share of view `a`'s points that
 /// view `b` also sees, in percent. Asymmetric: `overlap(a, b) ≠ overlap(b, a)` when the views

@@ -1,5 +1,5 @@
 //! Ground-truth presets: how each pair's rigid motion is drawn, and which overlaps are kept
-//! (SPEC §9).
+//! (docs/generator.md).
 //!
 //! | preset | rotation (Euler 'xyz', degrees) | translation | overlap % |
 //! |---|---|---|---|

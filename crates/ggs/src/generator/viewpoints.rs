@@ -1,4 +1,4 @@
-//! Camera positions on an icosphere around a scan (SPEC §9).
+//! Camera positions on an icosphere around a scan (docs/generator.md).
 //!
 //! The scan is put in its *floor frame*: translated so that its bounding-box minimum is the
 //! origin, so the plane `up = 0` is the floor. Cameras are icosphere vertices scaled to

@@ -1,4 +1,4 @@
-//! Local covariances and normals from the k nearest neighbours of every point (SPEC §6).
+//! Local covariances and normals from the k nearest neighbours of every point (docs/refinement.md).
 //!
 //! For a point with neighbours `N` (itself included): mean `μ`, covariance
 //! `Σ = (1/|N|)·Σ (p − μ)(p − μ)ᵀ`, eigenvectors `e₁, e₂, e₃` with eigenvalues `λ₁ ≤ λ₂ ≤ λ₃`.

@@ -1,5 +1,5 @@
 //! Fine registration from an initial transform: point-to-point, point-to-plane and generalized
-//! ICP (SPEC §6), with a quality report.
+//! ICP (docs/refinement.md), with a quality report.
 //!
 //! Every iteration pairs each moved source point `p' = T·p` with its nearest target point `q`
 //! and keeps the pair when `‖p' − q‖ ≤ d_c` (the *correspondence distance*, fixed for the

@@ -1,4 +1,4 @@
-//! Euler-angle grids of the original Greedy Grid Search (SPEC §5).
+//! Euler-angle grids of the original Greedy Grid Search (`limited15`, `full15`, `limited10`, see `rotations`).
 //!
 //! `R(α, β, γ) = Rz(−γ)·Ry(−β)·Rx(−α) = (Rx(α)·Ry(β)·Rz(γ))ᵀ`, applied as `R·p`; angles in
 //! degrees. Grid order: α outermost, then β, then γ fastest. Each angle list is in the order of

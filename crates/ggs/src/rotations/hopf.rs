@@ -1,5 +1,5 @@
 //! The Hopf-fibration grid of Yershova et al. with 15° steps, as the reference
-//! `R_Hopf_15_15_15.npy` (SPEC §5).
+//! `R_Hopf_15_15_15.npy` (see `rotations`).
 //!
 //! ψ = 15°·a (a < 24), θ = 15°·b (b < 12), φ = 15°·c (c < 24), a outermost and c fastest;
 //! quaternion `(x, y, z, w) = (cos(θ/2)cos(ψ/2), cos(θ/2)sin(ψ/2), sin(θ/2)cos(φ+ψ/2),

@@ -1,4 +1,4 @@
-//! Icosphere vertices and the axis-angle rotation set of Exhaustive Grid Search (SPEC §5).
+//! Icosphere vertices and the axis-angle rotation set of Exhaustive Grid Search (`ico162-s10`, see `rotations`).
 
 use super::trig::{cos_deg, sin_deg};
 use nalgebra::{Matrix3, Vector3};

@@ -1,4 +1,4 @@
-//! Rotation sets searched by the coarse stage (SPEC §5).
+//! Rotation sets searched by the coarse stage (the table below; coverage in docs/pipeline.md).
 //!
 //! | name | what | rows |
 //! |---|---|---|

@@ -1,4 +1,4 @@
-//! The coarse search of Greedy Grid Search (SPEC §2): every rotation of a set, the best
+//! The coarse search of Greedy Grid Search (docs/coarse-search.md): every rotation of a set, the best
 //! translation of each by FFT correlation, the best (rotation, translation) overall.
 //!
 //! Determinism: each rotation is scored independently into its own slot and the winner is
@@ -186,9 +186,9 @@ pub fn auto_voxel(target: &Cloud, cells: usize) -> Option<f64> {
 pub struct Hypothesis {
     /// Index of the rotation in the set.
     pub rotation_index: usize,
-    /// SPEC §2 score `Σ S_pad·K` (PV = 5, NV = PPV = −1), an exact integer.
+    /// Score `Σ S_pad·K` (PV = 5, NV = PPV = −1), an exact integer.
     pub score: i64,
-    /// Offset-free match score `5·n11 − n01` (SPEC §4); same argmax as `score`.
+    /// Offset-free match score `5·n11 − n01` (docs/coarse-search.md, "Exact integers"); same argmax as `score`.
     pub match_score: i64,
     /// Best offset `a` in cells (x, y, z).
     pub offset: [usize; 3],
@@ -235,7 +235,7 @@ pub struct SearchResult {
     #[serde(serialize_with = "ser_rigid")]
     pub transform: Rigid,
     pub rotation_index: usize,
-    /// SPEC score of the winner.
+    /// Score `Σ S_pad·K` of the winner (docs/coarse-search.md).
     pub score: i64,
     /// Match score `5·n11 − n01` of the winner.
     pub match_score: i64,
