@@ -250,6 +250,43 @@ fn an_interrupted_run_resumes_to_the_same_csv() {
 }
 
 #[test]
+fn a_run_directory_of_another_configuration_is_refused() {
+    let dir = temp_dir("config");
+    let pairs = kitti_like(&dir.join("data"));
+    let out = dir.join("run");
+    run(
+        "kitti-like",
+        &pairs[..1],
+        &config(),
+        true,
+        &out,
+        |_, _, _| {},
+    )
+    .unwrap();
+    assert!(out.join("run.json").is_file());
+    // The same configuration resumes (on any thread count)...
+    let mut same = config();
+    same.pipeline.threads = 1;
+    let again = run("kitti-like", &pairs[..1], &same, true, &out, |_, _, _| {}).unwrap();
+    assert_eq!(again.resumed, 1);
+    // ...another one does not mix its rows with the earlier ones.
+    let mut other = config();
+    other.max_rre_deg = 5.0;
+    let e = run("kitti-like", &pairs, &other, true, &out, |_, _, _| {})
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(
+        e.contains("run.json") && e.contains("another configuration"),
+        "{e}"
+    );
+    let mut moved = config();
+    moved.motion_seed = Some(3);
+    assert!(run("kitti-like", &pairs, &moved, true, &out, |_, _, _| {}).is_err());
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
 fn visible_point_views_load_and_register() {
     // FAUST-partial style: two index sets of one scan, the target moved by T.
     let dir = temp_dir("visible");

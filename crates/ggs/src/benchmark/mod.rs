@@ -14,6 +14,7 @@ use crate::cloud::Cloud;
 use crate::error::{GgsError, Result};
 use crate::metrics::{is_success, rre, rte};
 use crate::pipeline::{register, Registration, RegistrationConfig, VoxelSize};
+use crate::refine::RefineConfig;
 use crate::transform::Rigid;
 pub use protocol::Protocol;
 pub use row::PairRow;
@@ -140,6 +141,55 @@ pub struct RunConfig {
     pub motion_seed: Option<u64>,
 }
 
+impl RunConfig {
+    /// Everything that decides a row's result, as JSON (the thread count is left out: results
+    /// do not depend on it). Written to `run.json` in the run directory; a resumed run must
+    /// match it.
+    pub fn fingerprint(&self, protocol: &str) -> serde_json::Value {
+        let p = &self.pipeline;
+        let set = &p.rotations;
+        let refine = p.refine.map(|r| RefineConfig { threads: 0, ..r });
+        serde_json::json!({
+            "ggs": env!("CARGO_PKG_VERSION"),
+            "protocol": protocol,
+            "voxel": self.voxel,
+            "default_voxel": self.default_voxel,
+            "max_rre_deg": self.max_rre_deg,
+            "max_rte": self.max_rte,
+            "motion_seed": self.motion_seed,
+            "rotations": { "name": set.name, "count": set.len(), "step_deg": set.step_deg },
+            "search": {
+                "mode": p.search.mode,
+                "precision": p.search.precision,
+                "top_k": p.search.top_k,
+                "distinct_radius_deg": p.search.distinct_radius_deg,
+            },
+            "polish": p.polish,
+            "verify": p.verify,
+            "refine": refine,
+        })
+    }
+}
+
+/// `out/run.json`: written on a new run; on a resumed one it must equal `fingerprint`, or
+/// the earlier rows would be mixed with rows of another configuration.
+fn check_run_config(out: &Path, fingerprint: &serde_json::Value, resuming: bool) -> Result<()> {
+    let path = out.join("run.json");
+    let text = serde_json::to_string_pretty(fingerprint).expect("serializable") + "\n";
+    match std::fs::read_to_string(&path) {
+        Ok(earlier) if earlier == text => Ok(()),
+        Ok(_) => Err(GgsError::in_file(
+            &path,
+            "this run directory holds results of another configuration (voxel, rotation set, search, verification, refinement, thresholds or motion seed differ); choose another --out, or delete the directory to start again",
+        )),
+        Err(_) if resuming => Err(GgsError::in_file(
+            &path,
+            "missing: the earlier rows of this run directory cannot be checked against this configuration; choose another --out",
+        )),
+        Err(_) => crate::io::write_atomic(&path, text.as_bytes()),
+    }
+}
+
 /// Register one pair and score it. Errors reading or registering the pair are recorded in
 /// the row (a failed pair counts as unsuccessful), not returned.
 pub fn run_pair(pair: &BenchPair, cfg: &RunConfig) -> PairRow {
@@ -216,9 +266,10 @@ pub struct RunOutcome {
     pub resumed: usize,
 }
 
-/// Run `pairs` into `out` (created if needed): `pairs.csv` (one line per pair, appended as
-/// each finishes), then `results.json` (summary and rows), `summary.md` and `recall.svg`,
-/// each written atomically. Pairs already in `out/pairs.csv` are not run again.
+/// Run `pairs` into `out` (created if needed): `run.json` (the configuration), `pairs.csv`
+/// (one line per pair, appended as each finishes), then `results.json` (summary and rows),
+/// `summary.md` and `recall.svg`, each written atomically. Pairs already in `out/pairs.csv`
+/// are not run again; a directory whose `run.json` differs from this configuration is refused.
 /// `progress(done, total, row)` is called after every pair, resumed ones included.
 pub fn run(
     name: &str,
@@ -230,6 +281,7 @@ pub fn run(
 ) -> Result<RunOutcome> {
     std::fs::create_dir_all(out).map_err(|e| GgsError::io(out, e))?;
     let (mut csv, earlier) = row::ResultsCsv::open(&out.join("pairs.csv"))?;
+    check_run_config(out, &cfg.fingerprint(name), !earlier.is_empty())?;
     let mut done: std::collections::HashMap<String, PairRow> =
         earlier.into_iter().map(|r| (r.id.clone(), r)).collect();
     let mut rows = Vec::with_capacity(pairs.len());
