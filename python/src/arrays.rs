@@ -1,5 +1,6 @@
 //! numpy arrays ⇄ ggs types, and ggs errors as Python exceptions.
 
+use ggs::rotations::RotationSet;
 use ggs::{GgsError, Point, Rigid};
 use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray2, PyReadonlyArray3, PyUntypedArrayMethods};
 use pyo3::exceptions::{PyFileNotFoundError, PyOSError, PyPermissionError, PyValueError};
@@ -100,8 +101,8 @@ pub fn matrix_of(name: &str, obj: &Bound<'_, PyAny>) -> PyResult<Rigid> {
     Rigid::from_row_major(&v, 1e-4).map_err(|m| PyValueError::new_err(format!("{name}: {m}")))
 }
 
-/// An (N, 3, 3) float64 array as rotation matrices (row-major).
-pub fn rotations_of(name: &str, obj: &Bound<'_, PyAny>) -> PyResult<Vec<nalgebra::Matrix3<f64>>> {
+/// An (N, 3, 3) float64 array as a rotation set (every row checked to be a rotation).
+pub fn rotations_of(name: &str, obj: &Bound<'_, PyAny>) -> PyResult<RotationSet> {
     let a = obj.extract::<PyReadonlyArray3<'_, f64>>().map_err(|_| {
         PyValueError::new_err(format!("{name}: expected an (N, 3, 3) float64 array"))
     })?;
@@ -111,21 +112,9 @@ pub fn rotations_of(name: &str, obj: &Bound<'_, PyAny>) -> PyResult<Vec<nalgebra
             "{name}: expected an (N, 3, 3) array with N ≥ 1, got shape {sh:?}"
         )));
     }
-    let view = a.as_array();
-    let mut out = Vec::with_capacity(sh[0]);
-    for k in 0..sh[0] {
-        let m = nalgebra::Matrix3::from_fn(|r, c| view[[k, r, c]]);
-        let err = (m.transpose() * m - nalgebra::Matrix3::identity())
-            .abs()
-            .max();
-        if !(err <= 1e-5 && (m.determinant() - 1.0).abs() <= 1e-5) {
-            return Err(PyValueError::new_err(format!(
-                "{name}: row {k} is not a rotation matrix (‖RᵀR − I‖ = {err:.3e})"
-            )));
-        }
-        out.push(m);
-    }
-    Ok(out)
+    let data: Vec<f64> = a.as_array().iter().copied().collect();
+    RotationSet::from_row_major("array", &data)
+        .map_err(|m| PyValueError::new_err(format!("{name}: {m}")))
 }
 
 pub fn matrix_array<'py>(py: Python<'py>, t: &Rigid) -> PyResult<Bound<'py, PyAny>> {

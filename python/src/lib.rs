@@ -186,13 +186,7 @@ fn pipeline_config(
         cfg.rotations = RotationSet::named(name).map_err(value_err)?;
     }
     if let Some(m) = matrices {
-        let matrices = rotations_of("rotations", m)?;
-        let step_deg = ggs::rotations::median_nearest_angle(&matrices);
-        cfg.rotations = RotationSet {
-            name: "array".into(),
-            matrices,
-            step_deg,
-        };
+        cfg.rotations = rotations_of("rotations", m)?;
     }
     if let Some(tol) = o.dedup {
         if !(tol.is_finite() && tol >= 0.0) {

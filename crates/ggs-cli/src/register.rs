@@ -255,7 +255,7 @@ fn load(path: &Path, opts: &ReadOptions, quiet: bool) -> Result<Cloud> {
 /// The rotation set: --rotations-file, else the configuration's, then --dedup.
 fn rotation_set(args: &RegisterArgs, configured: RotationSet) -> Result<RotationSet> {
     let set = match &args.rotations_file {
-        Some(f) => RotationSet::from_npy(f)?,
+        Some(f) => io::npy::read_rotation_set(f)?,
         None => configured,
     };
     Ok(match args.dedup {

@@ -1,9 +1,8 @@
 //! The point cloud: an ordered list of 3-D points in the units of the input file.
 
 use crate::error::{GgsError, Result};
-
-/// A 3-D point, `[x, y, z]`, in the cloud's units (metres for every real data set here).
-pub type Point = [f64; 3];
+pub use crate::transform::Point;
+use crate::transform::Rigid;
 
 /// An ordered point cloud. Order is kept from the file, so results are reproducible.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -94,7 +93,7 @@ impl Cloud {
     }
 
     /// Apply `p ↦ R·p + t` to every point (`m` is a row-major 4×4 rigid transform).
-    pub fn transformed(&self, m: &crate::transform::Rigid) -> Cloud {
+    pub fn transformed(&self, m: &Rigid) -> Cloud {
         Cloud {
             points: self.points.iter().map(|p| m.apply(p)).collect(),
         }

@@ -26,27 +26,17 @@
 //! ([`CpuCorrelator::approx_best`], [`CpuCorrelator::error_bound`]); the search re-scores in
 //! f64 every rotation whose bound reaches the best exact score, so its picks are the f64 ones.
 
+use crate::grid_view::GridView;
+pub use crate::grid_view::Real;
 use crate::voxel::Occupancy;
 use realfft::{ComplexToReal, RealFftPlanner, RealToComplex};
 use rustfft::num_complex::Complex;
-use rustfft::num_traits::Float;
-use rustfft::{Fft, FftNum, FftPlanner};
+
+use rustfft::{Fft, FftPlanner};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 type C64 = Complex<f64>;
-
-/// Sample type of a correlator: f32 or f64.
-pub trait Real: FftNum + Float + Default {
-    /// Unit roundoff `u = 2^−p` of the type (2^−24 for f32, 2^−53 for f64).
-    const UNIT_ROUNDOFF: f64;
-}
-impl Real for f32 {
-    const UNIT_ROUNDOFF: f64 = 5.960_464_477_539_063e-8;
-}
-impl Real for f64 {
-    const UNIT_ROUNDOFF: f64 = 1.110_223_024_625_156_5e-16;
-}
 
 /// `true` if `n` has no prime factor above 3.
 pub fn is_3_smooth(mut n: usize) -> bool {
@@ -232,9 +222,9 @@ impl<T: Real> Workspace<T> {
     /// The grid buffer with its strides: write 1 to a cell to mark it occupied (the fast
     /// path for voxelizing many points).
     #[inline]
-    pub fn grid_mut(&mut self) -> crate::rotated::GridView<'_, T> {
+    pub fn grid_mut(&mut self) -> GridView<'_, T> {
         let lz = self.rrow.len();
-        crate::rotated::GridView {
+        GridView {
             cells: &mut self.real[..],
             sx: self.ay * lz,
             sy: lz,

@@ -7,7 +7,8 @@
 //! Cluster order also keeps voxel writes local. Occupancy does not depend on point order.
 
 use crate::cloud::{Cloud, Point};
-use crate::correlate::Real;
+pub use crate::grid_view::GridView;
+use crate::grid_view::Real;
 
 /// `row · p`, the one expression used for every rotated coordinate.
 #[inline(always)]
@@ -152,13 +153,6 @@ const LANES: usize = 16;
 
 /// `1.5·2^52`: for `0 ≤ v < 2^51`, `(v + MAGIC) − MAGIC` is `v` rounded to the nearest integer.
 const MAGIC: f64 = 6_755_399_441_055_744.0;
-
-/// A source grid to voxelize into: cell `(i, j, k)` is `cells[i·sx + j·sy + k]`.
-pub struct GridView<'a, T> {
-    pub cells: &'a mut [T],
-    pub sx: usize,
-    pub sy: usize,
-}
 
 impl RotatableCloud {
     /// Voxelize the rotated cloud: for every point `p`, mark the cell

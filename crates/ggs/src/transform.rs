@@ -3,8 +3,10 @@
 //! Convention everywhere in ggs: a registration result T maps source points into the target
 //! frame, `p_target = T · p_source`.
 
-use crate::cloud::Point;
 use nalgebra::{Matrix3, Matrix4, Vector3};
+
+/// A 3-D point, `[x, y, z]`, in the cloud's units (metres for every real data set here).
+pub type Point = [f64; 3];
 
 /// A rigid transform `p ↦ R·p + t`.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -76,14 +76,14 @@ fn npy_rotation_file_round_trip() {
         .collect();
     let p = dir.join("ico.npy");
     ggs::io::npy::write_npy_3d(&p, set.len(), &data).unwrap();
-    let back = RotationSet::from_npy(&p).unwrap();
+    let back = ggs::io::npy::read_rotation_set(&p).unwrap();
     assert_eq!(back.matrices, set.matrices);
     assert!((back.step_deg - 10.0).abs() < 1e-9, "{}", back.step_deg);
     // A non-rotation is rejected with its row number.
     let mut bad = data.clone();
     bad[9 * 5] = 2.0;
     ggs::io::npy::write_npy_3d(&p, set.len(), &bad).unwrap();
-    let e = RotationSet::from_npy(&p).unwrap_err().to_string();
+    let e = ggs::io::npy::read_rotation_set(&p).unwrap_err().to_string();
     assert!(e.contains("row 5"), "{e}");
     std::fs::remove_dir_all(&dir).unwrap();
 }

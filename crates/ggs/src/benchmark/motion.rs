@@ -5,7 +5,7 @@
 //! moved and the results compared.
 
 use crate::cloud::Cloud;
-use crate::generator::rng::Rng;
+use crate::rng::Rng;
 use crate::transform::Rigid;
 use nalgebra::{Quaternion, UnitQuaternion, Vector3};
 

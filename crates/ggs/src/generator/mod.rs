@@ -15,8 +15,8 @@ pub mod hull;
 pub mod output;
 pub mod overlap;
 pub mod presets;
-pub mod rng;
-pub mod sampling;
+pub use crate::mesh::sampling;
+pub use crate::rng;
 pub mod viewpoints;
 
 use crate::cloud::Point;

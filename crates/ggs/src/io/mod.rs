@@ -238,7 +238,7 @@ fn read_all<R: Read>(path: &Path, mut r: R) -> Result<Vec<u8>> {
 fn sampled(path: &Path, opts: &ReadOptions, m: mesh::Mesh) -> Result<Vec<crate::cloud::Point>> {
     match opts.mesh_samples {
         None => Ok(m.vertices),
-        Some(n) => crate::generator::sampling::sample_surface(&m, n, MESH_SAMPLE_SEED)
+        Some(n) => crate::mesh::sampling::sample_surface(&m, n, MESH_SAMPLE_SEED)
             .map_err(|e| GgsError::in_file(path, format!("cannot sample the mesh: {e}"))),
     }
 }

@@ -357,3 +357,27 @@ mod error_paths {
         not_a_cloud: npy("{'descr': '<f8', 'shape': (3,), }", &[0u8; 24]) => File, "shape [N, 3]";
     }
 }
+
+/// A rotation set from a `.npy` file of shape `[N, 3, 3]` (float32 or float64), named after
+/// the file; see [`RotationSet::from_row_major`](crate::rotations::RotationSet::from_row_major).
+pub fn read_rotation_set(path: &Path) -> Result<crate::rotations::RotationSet> {
+    let arr = read_npy(path)?;
+    if arr.shape.len() != 3 || arr.shape[1] != 3 || arr.shape[2] != 3 {
+        return Err(GgsError::in_file(
+            path,
+            format!(
+                "expected an array of shape [N, 3, 3], found {:?}",
+                arr.shape
+            ),
+        ));
+    }
+    if arr.shape[0] == 0 {
+        return Err(GgsError::in_file(path, "the rotation array has no rows"));
+    }
+    let name = path
+        .file_name()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    crate::rotations::RotationSet::from_row_major(&name, &arr.data)
+        .map_err(|m| GgsError::in_file(path, m))
+}

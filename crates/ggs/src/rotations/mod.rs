@@ -29,7 +29,6 @@ pub mod trig;
 
 use crate::error::{GgsError, Result};
 use nalgebra::Matrix3;
-use std::path::Path;
 
 /// The names accepted by [`RotationSet::named`].
 pub const NAMES: &[&str] = &[
@@ -100,43 +99,32 @@ impl RotationSet {
         })
     }
 
-    /// A set read from a `.npy` file of shape `[N, 3, 3]` (float32 or float64). Every matrix
-    /// must be a rotation to within 1e-5 (‖RᵀR − I‖∞ and |det R − 1|).
-    pub fn from_npy(path: &Path) -> Result<Self> {
-        let arr = crate::io::npy::read_npy(path)?;
-        if arr.shape.len() != 3 || arr.shape[1] != 3 || arr.shape[2] != 3 {
-            return Err(GgsError::in_file(
-                path,
-                format!(
-                    "expected an array of shape [N, 3, 3], found {:?}",
-                    arr.shape
-                ),
+    /// A set from `n` row-major 3×3 matrices (`data` holds `9·n` numbers). Every matrix must
+    /// be a rotation to within 1e-5 (‖RᵀR − I‖∞ and |det R − 1|); the error says which row
+    /// is not. The step is the median angle from a rotation to its nearest neighbour.
+    /// (`io::npy::read_rotation_set` reads one from a `.npy` file.)
+    pub fn from_row_major(name: &str, data: &[f64]) -> std::result::Result<Self, String> {
+        if data.is_empty() || !data.len().is_multiple_of(9) {
+            return Err(format!(
+                "expected 9 numbers per rotation and at least one rotation, found {} numbers",
+                data.len()
             ));
         }
-        if arr.shape[0] == 0 {
-            return Err(GgsError::in_file(path, "the rotation array has no rows"));
-        }
-        let mut matrices = Vec::with_capacity(arr.shape[0]);
-        for (i, m) in arr.data.chunks_exact(9).enumerate() {
+        let mut matrices = Vec::with_capacity(data.len() / 9);
+        for (i, m) in data.chunks_exact(9).enumerate() {
             let r = Matrix3::from_row_slice(m);
             let err = (r.transpose() * r - Matrix3::identity()).abs().max();
             let det = r.determinant();
             if !(err <= 1e-5 && (det - 1.0).abs() <= 1e-5) {
-                return Err(GgsError::in_file(
-                    path,
-                    format!(
-                        "row {i} is not a rotation matrix (‖RᵀR − I‖ = {err:.3e}, det = {det:.6})"
-                    ),
+                return Err(format!(
+                    "row {i} is not a rotation matrix (‖RᵀR − I‖ = {err:.3e}, det = {det:.6})"
                 ));
             }
             matrices.push(r);
         }
         let step_deg = median_nearest_angle(&matrices);
         Ok(RotationSet {
-            name: path
-                .file_name()
-                .map(|s| s.to_string_lossy().into_owned())
-                .unwrap_or_default(),
+            name: name.to_string(),
             matrices,
             step_deg,
         })

@@ -4,9 +4,9 @@
 //! cumulative areas), then a point uniform in it: with r₁, r₂ uniform in [0, 1),
 //! `p = (1 − √r₁)·a + √r₁·(1 − r₂)·b + √r₁·r₂·c` (Osada et al. 2002).
 
-use super::rng::Rng;
+use super::Mesh;
 use crate::cloud::Point;
-use crate::io::mesh::Mesh;
+use crate::rng::Rng;
 
 /// Total surface area of the mesh, in squared mesh units.
 pub fn surface_area(mesh: &Mesh) -> f64 {
