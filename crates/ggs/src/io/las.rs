@@ -11,7 +11,7 @@ use std::path::Path;
 const BATCH: u64 = 1 << 16;
 
 /// Read every point of a LAS or LAZ file (the format is in the header, not the extension)
-/// from a stream positioned at its first byte. Points are decoded [`BATCH`] at a time, so
+/// from a stream positioned at its first byte. Points are decoded `BATCH` at a time, so
 /// the memory beside the output is one batch of `las::Point`s.
 pub fn read_las<R: Read + Seek + Send + Sync + 'static>(
     path: &Path,
