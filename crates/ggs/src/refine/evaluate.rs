@@ -53,11 +53,7 @@ pub fn evaluate(
     Ok(Evaluation {
         fitness_source: inliers as f64 / source.len() as f64,
         fitness_target: matched_target as f64 / target.len() as f64,
-        inlier_rmse: if inliers > 0 {
-            (sq / inliers as f64).sqrt()
-        } else {
-            0.0
-        },
+        inlier_rmse: super::root_mean(sq, inliers),
         inliers,
     })
 }

@@ -222,6 +222,15 @@ fn ser_rigid<S: serde::Serializer>(t: &Rigid, s: S) -> std::result::Result<S::Ok
 
 const CHUNK: usize = 1024;
 
+/// `sqrt(sum_sq / n)`, 0 for no term: the RMS of `n` distances whose squares sum to `sum_sq`.
+pub(crate) fn root_mean(sum_sq: f64, n: usize) -> f64 {
+    if n > 0 {
+        (sum_sq / n as f64).sqrt()
+    } else {
+        0.0
+    }
+}
+
 #[inline]
 fn v3(p: &Point) -> Vector3<f64> {
     Vector3::new(p[0], p[1], p[2])
@@ -619,11 +628,7 @@ fn quality(
     QualityReport {
         fitness_source: inliers as f64 / src.len() as f64,
         fitness_target: target_in as f64 / tgt.len() as f64,
-        inlier_rmse: if inliers > 0 {
-            (sq / inliers as f64).sqrt()
-        } else {
-            0.0
-        },
+        inlier_rmse: root_mean(sq, inliers),
         inliers,
         correspondence_distance: d_c,
         iterations,
