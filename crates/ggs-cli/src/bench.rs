@@ -1,11 +1,9 @@
 //! `ggs bench PROTOCOL`: run a published benchmark protocol or a manifest of pairs.
 
-use crate::register::PipelineArgs;
+use crate::pipeline_args::PipelineArgs;
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use ggs::benchmark::{self, missing_files, Protocol, RunConfig};
-use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
-use std::io::IsTerminal;
 use std::path::PathBuf;
 
 #[derive(Args)]
@@ -109,17 +107,7 @@ pub fn run(args: BenchArgs) -> Result<()> {
         .out
         .clone()
         .unwrap_or_else(|| PathBuf::from(format!("ggs-bench-{}", protocol.name())));
-    let pb = if args.quiet || !std::io::stderr().is_terminal() {
-        ProgressBar::hidden()
-    } else {
-        let pb =
-            ProgressBar::with_draw_target(Some(pairs.len() as u64), ProgressDrawTarget::stderr());
-        pb.set_style(
-            ProgressStyle::with_template("{bar:40} {pos}/{len} pairs, ETA {eta} {msg}")
-                .expect("valid template"),
-        );
-        pb
-    };
+    let pb = crate::progress::bar(pairs.len(), "pairs", args.quiet);
     let mut successes = 0;
     let outcome = benchmark::run(
         protocol.name(),

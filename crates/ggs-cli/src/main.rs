@@ -17,6 +17,8 @@ macro_rules! outln {
 mod bench;
 mod files;
 mod partial;
+mod pipeline_args;
+mod progress;
 mod refine_args;
 mod register;
 

@@ -9,8 +9,6 @@ use ggs::generator::{
     viewpoints::{Centre, ViewConfig},
     GeneratorConfig, SampleSize, ScanInput,
 };
-use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
-use std::io::IsTerminal;
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -181,20 +179,6 @@ fn config(args: &PartialArgs) -> Result<GeneratorConfig> {
     })
 }
 
-fn progress_bar(quiet: bool, len: usize, what: &str) -> ProgressBar {
-    if quiet || !std::io::stderr().is_terminal() {
-        return ProgressBar::hidden();
-    }
-    let pb = ProgressBar::with_draw_target(Some(len as u64), ProgressDrawTarget::stderr());
-    pb.set_style(
-        ProgressStyle::with_template(&format!(
-            "{{bar:40}} {{pos}}/{{len}} {what}, ETA {{eta}} {{msg}}"
-        ))
-        .expect("valid template"),
-    );
-    pb
-}
-
 pub fn run(args: PartialArgs) -> Result<()> {
     let cfg = config(&args)?;
     let t0 = Instant::now();
@@ -207,7 +191,7 @@ pub fn run(args: PartialArgs) -> Result<()> {
             bail!("--scans {}: not a directory", scans.display());
         }
         output::prepare_out(&args.out, args.force)?;
-        let pb = progress_bar(args.quiet, 100, "scans");
+        let pb = crate::progress::bar(100, "scans", args.quiet);
         let r = fpv1::rebuild(csv, scans, &cfg, &args.out, |done, total, name| {
             pb.set_length(total as u64);
             pb.set_position(done as u64);
@@ -275,7 +259,7 @@ pub fn run(args: PartialArgs) -> Result<()> {
     }
     generator::check_names(&inputs)?;
     output::prepare_out(&args.out, args.force)?;
-    let pb = progress_bar(args.quiet, inputs.len(), "scans");
+    let pb = crate::progress::bar(inputs.len(), "scans", args.quiet);
     let g = generator::generate(&inputs, &cfg, &args.out, |done, _, name| {
         pb.set_position(done as u64);
         pb.set_message(name.to_string());

@@ -6,14 +6,12 @@ use anyhow::{bail, Context, Result};
 use clap::Args;
 use ggs::io::{self, ply, ReadOptions};
 use ggs::pipeline::{
-    self, Preset, Registration, RegistrationConfig, Verification, VoxelSize, AUTO_VOXEL_CELLS,
+    self, Registration, RegistrationConfig, Verification, VoxelSize, AUTO_VOXEL_CELLS,
 };
 use ggs::refine;
 use ggs::rotations::{RotationSet, DUPLICATE_TOL_DEG};
 use ggs::search;
 use ggs::{Cloud, Point, Rigid};
-use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
-use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::Instant;
@@ -28,7 +26,7 @@ pub struct RegisterArgs {
     #[arg(long, allow_negative_numbers = true)]
     pub voxel: Option<f64>,
     #[command(flatten)]
-    pub pipeline: PipelineArgs,
+    pub pipeline: crate::pipeline_args::PipelineArgs,
     /// Rotation set from a .npy file of shape [N, 3, 3].
     #[arg(long, value_name = "F", conflicts_with = "rotations")]
     pub rotations_file: Option<PathBuf>,
@@ -59,132 +57,6 @@ pub struct RegisterArgs {
     /// No progress bar and no warnings.
     #[arg(short, long)]
     pub quiet: bool,
-}
-
-/// The configuration of the pipeline, shared by `register` and `bench`: a preset and the
-/// flags that change it.
-#[derive(Args, Clone)]
-pub struct PipelineArgs {
-    /// default: full-SO(3) set, coarse-to-fine, polish and verification of the distinct
-    /// hypotheses, GICP; paper: the GGS paper's configuration (limited15, exhaustive, one
-    /// hypothesis, GICP).
-    #[arg(long, default_value = "default")]
-    pub preset: String,
-    /// Built-in rotation set: hopf15-id (default), limited15, full15, limited10, hopf15,
-    /// hopf15-dedup, ico162-s10.
-    #[arg(long)]
-    pub rotations: Option<String>,
-    #[command(flatten)]
-    pub search: SearchArgs,
-    /// Verify at most N distinct hypotheses (1: only the coarse winner).
-    #[arg(long, value_name = "N")]
-    pub max_hypotheses: Option<usize>,
-    /// Verify the hypotheses whose match score is at least this fraction of the winner's.
-    #[arg(long, value_name = "F")]
-    pub margin: Option<f64>,
-    /// Take the coarse winner without verification.
-    #[arg(long)]
-    pub no_verify: bool,
-    /// Polish each hypothesis on a finer rotation grid (7 rotations a step, scored by the
-    /// correlation) before its ICP; off by default (measured: no change on the benchmarks).
-    #[arg(long)]
-    pub polish: bool,
-    /// Refinement after the coarse search: gicp (default), p2plane, p2p or none.
-    #[arg(long)]
-    pub refine: Option<String>,
-    #[command(flatten)]
-    pub refine_options: RefineOptions,
-}
-
-impl PipelineArgs {
-    /// The preset, changed by the flags given (voxel and rotation set not included).
-    pub fn config(&self, threads: usize) -> Result<RegistrationConfig> {
-        let preset: Preset = self.preset.parse().context("--preset")?;
-        let mut cfg = RegistrationConfig::preset(preset);
-        cfg.threads = threads;
-        if let Some(name) = &self.rotations {
-            cfg.rotations = RotationSet::named(name)?;
-        }
-        let (mode, precision) = self.search.parse(cfg.search.mode)?;
-        cfg.search.mode = mode;
-        cfg.search.precision = precision;
-        if self.no_verify {
-            cfg.verify = None;
-        }
-        if let Some(v) = &mut cfg.verify {
-            if let Some(n) = self.max_hypotheses {
-                if n == 0 {
-                    bail!("--max-hypotheses must be at least 1");
-                }
-                v.max_hypotheses = n;
-            }
-            if let Some(m) = self.margin {
-                if !(m.is_finite() && (0.0..=1.0).contains(&m)) {
-                    bail!("--margin must be in [0, 1], got {m}");
-                }
-                v.margin = m;
-            }
-        } else if self.max_hypotheses.is_some() || self.margin.is_some() {
-            bail!("--max-hypotheses and --margin need verification (not with --no-verify or --preset paper)");
-        }
-        if self.polish {
-            cfg.polish = Some(ggs::pipeline::PolishConfig::default());
-        }
-        let method = match &self.refine {
-            Some(name) => parse_method(name)?,
-            None => cfg.refine.map(|r| r.method),
-        };
-        cfg.refine = match method {
-            Some(m) => Some(self.refine_options.config(m, threads)?),
-            None => None,
-        };
-        Ok(cfg)
-    }
-}
-
-/// How the rotations are searched (shared by `register` and `bench`).
-#[derive(Args, Clone)]
-pub struct SearchArgs {
-    /// exhaustive: every rotation at the voxel size (GGS); coarse-to-fine (the default preset's):
-    /// every rotation at --coarse-factor × voxel, then the best --coarse-keep of them and their
-    /// grid neighbours at the voxel size (much faster; same answers on every benchmark pair).
-    #[arg(long, value_name = "MODE")]
-    pub search: Option<String>,
-    /// Correlation arithmetic: mixed (f32 with proven error bounds, f64 re-scoring of every
-    /// rotation whose bound reaches the best: same picks as f64) or f64.
-    #[arg(long, default_value = "mixed")]
-    pub precision: String,
-    /// Coarse voxel = this × voxel (coarse-to-fine).
-    #[arg(long, default_value_t = 2.0, value_name = "F")]
-    pub coarse_factor: f64,
-    /// Fraction of the rotations kept from the coarse level (coarse-to-fine).
-    #[arg(long, default_value_t = 0.02, value_name = "FRAC")]
-    pub coarse_keep: f64,
-    /// Keep at least this many rotations from the coarse level (coarse-to-fine).
-    #[arg(long, default_value_t = 16, value_name = "N")]
-    pub coarse_keep_min: usize,
-}
-
-impl SearchArgs {
-    /// The search mode (the preset's `mode` unless --search is given) and precision.
-    pub fn parse(
-        &self,
-        preset: search::SearchMode,
-    ) -> Result<(search::SearchMode, search::Precision)> {
-        let c2f = search::CoarseToFine {
-            factor: self.coarse_factor,
-            keep_fraction: self.coarse_keep,
-            keep_min: self.coarse_keep_min,
-            neighbour_deg: None,
-        };
-        let mode = match (&self.search, preset) {
-            (Some(name), _) => search::SearchMode::from_name(name, c2f).context("--search")?,
-            (None, search::SearchMode::CoarseToFine(_)) => search::SearchMode::CoarseToFine(c2f),
-            (None, m) => m,
-        };
-        let precision = self.precision.parse().context("--precision")?;
-        Ok((mode, precision))
-    }
 }
 
 #[derive(Args)]
@@ -265,20 +137,6 @@ fn rotation_set(args: &RegisterArgs, configured: RotationSet) -> Result<Rotation
     })
 }
 
-fn progress_bar(len: usize, quiet: bool) -> ProgressBar {
-    if quiet || !std::io::stderr().is_terminal() {
-        return ProgressBar::hidden();
-    }
-    let pb = ProgressBar::with_draw_target(Some(len as u64), ProgressDrawTarget::stderr());
-    pb.set_style(
-        ProgressStyle::with_template(
-            "{spinner} rotations {bar:40} {pos}/{len} {per_sec} ETA {eta}",
-        )
-        .expect("valid template"),
-    );
-    pb
-}
-
 /// The pipeline's configuration from the command line.
 fn config(args: &RegisterArgs) -> Result<RegistrationConfig> {
     let mut cfg = args.pipeline.config(args.threads)?;
@@ -307,7 +165,7 @@ pub fn run(args: RegisterArgs) -> Result<()> {
     let source = load(&args.source, &format, args.quiet)?;
     let target = load(&args.target, &format, args.quiet)?;
     let read_ms = t0.elapsed().as_secs_f64() * 1e3;
-    let pb = progress_bar(cfg.rotations.len(), args.quiet);
+    let pb = crate::progress::bar(cfg.rotations.len(), "rotations", args.quiet);
     let pbc = pb.clone();
     cfg.search.progress = Some(Arc::new(move |n| pbc.set_position(n as u64)));
     let result = pipeline::register(&source, &target, &cfg);
