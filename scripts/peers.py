@@ -82,7 +82,7 @@ def open3d_methods(threads):
     o3d.utility.set_verbosity_level(o3d.utility.VerbosityLevel.Error)
 
     def read(path):
-        pts = subprocess_free_read(path)
+        pts = read_points(path)
         pc = o3d.geometry.PointCloud()
         pc.points = o3d.utility.Vector3dVector(pts)
         return pc
@@ -134,7 +134,7 @@ def open3d_methods(threads):
     return methods
 
 
-def subprocess_free_read(path):
+def read_points(path):
     """The points of a pair's file, read by the ggs Python package if installed, else numpy."""
     try:
         import ggs
