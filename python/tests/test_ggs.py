@@ -216,9 +216,9 @@ def test_gil_is_released_during_registration():
     done.set()
     th.join()
     during = [t for t in ticks if t0 < t < t1]
-    # With the GIL held the other thread could not tick at all during the call.
-    assert t1 - t0 > 0.1
-    assert len(during) > 0.3 * (t1 - t0) / 0.002, (len(during), t1 - t0)
+    # With the GIL held the other thread could not tick at all during the call (an exhaustive
+    # full15 search at 3 mm: thousands of rotations, far longer than a few ticks).
+    assert len(during) >= 10, len(during)
 
 
 def test_ctrl_c_interrupts_a_long_search():
@@ -226,13 +226,16 @@ def test_ctrl_c_interrupts_a_long_search():
 
     source, target = bunny_small()
     timer = threading.Timer(0.3, _thread.interrupt_main)
-    t0 = time.perf_counter()
+    finished = 0
     timer.start()
     with pytest.raises(KeyboardInterrupt):
-        # Far longer than 0.3 s on any machine.
+        # One exhaustive full15 search at 2 mm on one thread scores 6364 rotations on grids
+        # of ~80³: far longer than 0.3 s on any machine.
         for _ in range(50):
             ggs.register(source, target, voxel=0.002, rotations="full15", search="exhaustive", threads=1)
-    assert time.perf_counter() - t0 < 30
+            finished += 1
+    # The interrupt stopped the first search from inside; it did not wait for it to end.
+    assert finished == 0
 
 
 def test_equals_the_cli_bit_for_bit():
