@@ -189,14 +189,10 @@ fn pipeline_config(
         cfg.rotations = rotations_of("rotations", m)?;
     }
     if let Some(tol) = o.dedup {
-        if !(tol.is_finite() && tol >= 0.0) {
-            return Err(PyValueError::new_err(format!(
-                "dedup must be ≥ 0 degrees, got {tol}"
-            )));
-        }
         cfg.rotations = cfg
             .rotations
-            .deduplicated(tol.max(ggs::rotations::DUPLICATE_TOL_DEG));
+            .without_duplicates_within(tol)
+            .map_err(value_err)?;
     }
     cfg.search.mode = match (&o.search, cfg.search.mode) {
         (Some(name), _) => {

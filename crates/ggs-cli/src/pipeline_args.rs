@@ -101,15 +101,15 @@ pub struct SearchArgs {
     /// rotation whose bound reaches the best: same picks as f64) or f64.
     #[arg(long, default_value = "mixed")]
     pub precision: String,
-    /// Coarse voxel = this × voxel (coarse-to-fine).
-    #[arg(long, default_value_t = 2.0, value_name = "F")]
-    pub coarse_factor: f64,
-    /// Fraction of the rotations kept from the coarse level (coarse-to-fine).
-    #[arg(long, default_value_t = 0.02, value_name = "FRAC")]
-    pub coarse_keep: f64,
-    /// Keep at least this many rotations from the coarse level (coarse-to-fine).
-    #[arg(long, default_value_t = 16, value_name = "N")]
-    pub coarse_keep_min: usize,
+    /// Coarse voxel = this × voxel (coarse-to-fine; default 2).
+    #[arg(long, value_name = "F")]
+    pub coarse_factor: Option<f64>,
+    /// Fraction of the rotations kept from the coarse level (coarse-to-fine; default 0.02).
+    #[arg(long, value_name = "FRAC")]
+    pub coarse_keep: Option<f64>,
+    /// Keep at least this many rotations from the coarse level (coarse-to-fine; default 16).
+    #[arg(long, value_name = "N")]
+    pub coarse_keep_min: Option<usize>,
 }
 
 impl SearchArgs {
@@ -118,10 +118,12 @@ impl SearchArgs {
         &self,
         preset: search::SearchMode,
     ) -> Result<(search::SearchMode, search::Precision)> {
+        // The library's defaults (`CoarseToFine::default`), changed by the options given.
+        let d = search::CoarseToFine::default();
         let c2f = search::CoarseToFine {
-            factor: self.coarse_factor,
-            keep_fraction: self.coarse_keep,
-            keep_min: self.coarse_keep_min,
+            factor: self.coarse_factor.unwrap_or(d.factor),
+            keep_fraction: self.coarse_keep.unwrap_or(d.keep_fraction),
+            keep_min: self.coarse_keep_min.unwrap_or(d.keep_min),
             neighbour_deg: None,
         };
         let mode = match (&self.search, preset) {

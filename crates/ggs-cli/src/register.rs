@@ -2,14 +2,14 @@
 
 use crate::files::{self, InputArgs};
 use crate::refine_args::{parse_method, print_report, read_matrix, RefineOptions};
-use anyhow::{bail, Context, Result};
+use anyhow::{Context, Result};
 use clap::Args;
 use ggs::io::{self, ply, ReadOptions};
 use ggs::pipeline::{
     self, Registration, RegistrationConfig, Verification, VoxelSize, AUTO_VOXEL_CELLS,
 };
 use ggs::refine;
-use ggs::rotations::{RotationSet, DUPLICATE_TOL_DEG};
+use ggs::rotations::RotationSet;
 use ggs::search;
 use ggs::{Cloud, Point, Rigid};
 use std::path::{Path, PathBuf};
@@ -131,8 +131,7 @@ fn rotation_set(args: &RegisterArgs, configured: RotationSet) -> Result<Rotation
         None => configured,
     };
     Ok(match args.dedup {
-        Some(tol) if tol >= 0.0 => set.deduplicated(tol.max(DUPLICATE_TOL_DEG)),
-        Some(tol) => bail!("--dedup must be ≥ 0 degrees, got {tol}"),
+        Some(tol) => set.without_duplicates_within(tol).context("--dedup")?,
         None => set,
     })
 }

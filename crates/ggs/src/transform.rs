@@ -8,6 +8,11 @@ use nalgebra::{Matrix3, Matrix4, Vector3};
 /// A 3-D point, `[x, y, z]`, in the cloud's units (metres for every real data set here).
 pub type Point = [f64; 3];
 
+/// Serialize a [`Rigid`] as its 4×4 rows (for `#[serde(serialize_with = "...")]`).
+pub fn serialize_rows<S: serde::Serializer>(t: &Rigid, s: S) -> Result<S::Ok, S::Error> {
+    serde::Serialize::serialize(&t.to_rows(), s)
+}
+
 /// A rigid transform `p ↦ R·p + t`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Rigid {

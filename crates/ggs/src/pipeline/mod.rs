@@ -184,10 +184,10 @@ pub struct VerifiedHypothesis {
     /// Coarse match score `5·n11 − n01` at the grid rotation, and after the polish.
     pub match_score: i64,
     pub polished_match_score: i64,
-    #[serde(serialize_with = "ser_rigid")]
+    #[serde(serialize_with = "crate::transform::serialize_rows")]
     pub coarse_transform: Rigid,
     /// After the polish and the verification's ICP.
-    #[serde(serialize_with = "ser_rigid")]
+    #[serde(serialize_with = "crate::transform::serialize_rows")]
     pub transform: Rigid,
     pub evidence: Evidence,
     pub iterations: usize,
@@ -222,10 +222,10 @@ pub struct StageTimes {
 #[derive(Debug, Clone, serde::Serialize)]
 pub struct Registration {
     /// The final transform, `p_target = T · p_source`.
-    #[serde(serialize_with = "ser_rigid")]
+    #[serde(serialize_with = "crate::transform::serialize_rows")]
     pub transform: Rigid,
     /// The chosen hypothesis's grid transform (before polish and ICP).
-    #[serde(serialize_with = "ser_rigid")]
+    #[serde(serialize_with = "crate::transform::serialize_rows")]
     pub coarse_transform: Rigid,
     pub voxel: f64,
     pub voxel_auto: bool,
@@ -241,10 +241,6 @@ pub struct Registration {
     pub verification: Option<Verification>,
     pub refine: Option<RefineResult>,
     pub timings: StageTimes,
-}
-
-fn ser_rigid<S: serde::Serializer>(t: &Rigid, s: S) -> std::result::Result<S::Ok, S::Error> {
-    serde::Serialize::serialize(&t.to_rows(), s)
 }
 
 fn ms(t: Instant) -> f64 {
@@ -288,7 +284,7 @@ pub fn register(source: &Cloud, target: &Cloud, cfg: &RegistrationConfig) -> Res
             (h.transform, h.coarse_transform, h.rank)
         }
         None => (
-            polished_winner(source, target, &coarse, &search, cfg)?,
+            maybe_polished(source, target, &coarse.hypotheses[0], &search, cfg)?.transform,
             coarse.transform,
             0,
         ),
@@ -323,28 +319,17 @@ pub fn register(source: &Cloud, target: &Cloud, cfg: &RegistrationConfig) -> Res
     })
 }
 
-/// The coarse winner, polished when the config asks for it (no verification).
-fn polished_winner(
+/// `h` polished when the config asks for it, else `h` itself.
+fn maybe_polished(
     source: &Cloud,
     target: &Cloud,
-    coarse: &SearchResult,
+    h: &Hypothesis,
     search: &SearchConfig,
     cfg: &RegistrationConfig,
-) -> Result<Rigid> {
+) -> Result<Hypothesis> {
     Ok(match &cfg.polish {
-        Some(p) => {
-            polish::polish(
-                source,
-                target,
-                &coarse.hypotheses[0],
-                cfg.rotations.step_deg,
-                search,
-                p,
-            )?
-            .hypothesis
-            .transform
-        }
-        None => coarse.transform,
+        Some(p) => polish::polish(source, target, h, cfg.rotations.step_deg, search, p)?.hypothesis,
+        None => *h,
     })
 }
 
@@ -382,12 +367,7 @@ fn verify_hypotheses(
     let mut out: Vec<VerifiedHypothesis> = Vec::new();
     let mut best = 0.0f64;
     for (rank, h) in candidates(coarse, v).iter().enumerate() {
-        let polished = match &cfg.polish {
-            Some(p) => {
-                polish::polish(source, target, h, cfg.rotations.step_deg, search, p)?.hypothesis
-            }
-            None => *h,
-        };
+        let polished = maybe_polished(source, target, h, search, cfg)?;
         let c = verify::check(&thinned, &verifier, &polished.transform, &icp, v, best)?;
         best = best.max(c.evidence.score);
         out.push(VerifiedHypothesis {

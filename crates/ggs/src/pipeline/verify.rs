@@ -190,12 +190,13 @@ pub fn check(
     let first = run(start, cfg.check_iterations)?;
     let evidence = verifier.evidence(&first.transform);
     let mut iterations = first.report.iterations;
-    if evidence.score < cfg.reject_ratio * best_so_far || !more_iterations(&first, cfg) {
+    let rejected = evidence.score < cfg.reject_ratio * best_so_far;
+    if rejected || !more_iterations(&first, cfg) {
         return Ok(Checked {
             transform: first.transform,
             evidence,
             iterations,
-            rejected_early: evidence.score < cfg.reject_ratio * best_so_far,
+            rejected_early: rejected,
         });
     }
     let second = run(&first.transform, cfg.max_iterations - cfg.check_iterations)?;

@@ -206,7 +206,7 @@ pub struct QualityReport {
 /// Result of a refinement.
 #[derive(Debug, Clone, serde::Serialize)]
 pub struct RefineResult {
-    #[serde(serialize_with = "ser_rigid")]
+    #[serde(serialize_with = "crate::transform::serialize_rows")]
     pub transform: Rigid,
     pub report: QualityReport,
     pub method: Method,
@@ -214,10 +214,6 @@ pub struct RefineResult {
     pub setup_ms: f64,
     pub iterate_ms: f64,
     pub total_ms: f64,
-}
-
-fn ser_rigid<S: serde::Serializer>(t: &Rigid, s: S) -> std::result::Result<S::Ok, S::Error> {
-    serde::Serialize::serialize(&t.to_rows(), s)
 }
 
 const CHUNK: usize = 1024;

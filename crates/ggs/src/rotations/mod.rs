@@ -130,6 +130,18 @@ impl RotationSet {
         })
     }
 
+    /// [`Self::deduplicated`] for a user's tolerance: it must be a number ≥ 0 (degrees), and
+    /// one below [`DUPLICATE_TOL_DEG`] removes the exact duplicates.
+    pub fn without_duplicates_within(&self, tol_deg: f64) -> Result<Self> {
+        if !(tol_deg.is_finite() && tol_deg >= 0.0) {
+            return Err(GgsError::param(
+                "dedup",
+                format!("must be ≥ 0 degrees, got {tol_deg}"),
+            ));
+        }
+        Ok(self.deduplicated(tol_deg.max(DUPLICATE_TOL_DEG)))
+    }
+
     /// The same set without rotations within `tol_deg` of an earlier one.
     pub fn deduplicated(&self, tol_deg: f64) -> Self {
         let keep = dedup::dedup_geodesic(&self.matrices, tol_deg);

@@ -193,12 +193,8 @@ pub struct Hypothesis {
     /// Best offset `a` in cells (x, y, z).
     pub offset: [usize; 3],
     /// The transform, `p_target = T · p_source`.
-    #[serde(serialize_with = "ser_rigid")]
+    #[serde(serialize_with = "crate::transform::serialize_rows")]
     pub transform: Rigid,
-}
-
-fn ser_rigid<S: serde::Serializer>(t: &Rigid, s: S) -> std::result::Result<S::Ok, S::Error> {
-    serde::Serialize::serialize(&t.to_rows(), s)
 }
 
 /// Wall-clock and CPU times of the stages, in milliseconds.
@@ -232,7 +228,7 @@ pub struct Timings {
 #[derive(Debug, Clone, serde::Serialize)]
 pub struct SearchResult {
     /// Best transform, `p_target = T · p_source`.
-    #[serde(serialize_with = "ser_rigid")]
+    #[serde(serialize_with = "crate::transform::serialize_rows")]
     pub transform: Rigid,
     pub rotation_index: usize,
     /// Score `Σ S_pad·K` of the winner (docs/coarse-search.md).
