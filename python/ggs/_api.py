@@ -247,7 +247,8 @@ def register(
     """Register ``source`` onto ``target`` with no initial guess.
 
     source, target: (N, 3) points: arrays, array-likes, or objects with ``.points`` (Open3D).
-    voxel: grid size in the clouds' units (default: the target's longest side / 32).
+    voxel: grid size in the clouds' units (default: the target's longest side / 32, or
+      1.5 × the clouds' point spacing when that is larger).
     preset: ``"default"`` — the full-SO(3) rotation set ``hopf15-id``, the coarse-to-fine
       search, then every distinct coarse hypothesis whose match score is at least half the
       winner's (at most 8) refined on thinned clouds and scored by how much of both clouds

@@ -5,9 +5,7 @@ use crate::refine_args::{parse_method, print_report, read_matrix, RefineOptions}
 use anyhow::{Context, Result};
 use clap::Args;
 use ggs::io::{self, ply, ReadOptions};
-use ggs::pipeline::{
-    self, Registration, RegistrationConfig, Verification, VoxelSize, AUTO_VOXEL_CELLS,
-};
+use ggs::pipeline::{self, Registration, RegistrationConfig, Verification, VoxelSize};
 use ggs::refine;
 use ggs::rotations::RotationSet;
 use ggs::search;
@@ -22,7 +20,7 @@ pub struct RegisterArgs {
     pub source: PathBuf,
     /// Target point cloud.
     pub target: PathBuf,
-    /// Voxel size in the clouds' units; default: the target's longest side / 32.
+    /// Voxel size in the clouds' units; default: the target's longest side / 32, or 1.5 × the point spacing when larger
     #[arg(long, allow_negative_numbers = true)]
     pub voxel: Option<f64>,
     #[command(flatten)]
@@ -192,7 +190,8 @@ pub fn run(args: RegisterArgs) -> Result<()> {
             "target": args.target,
             "preset": args.pipeline.preset,
             "voxel": reg.voxel,
-            "voxel_auto": reg.voxel_auto,
+            "voxel_auto": reg.voxel_rule.is_some(),
+            "voxel_rule": reg.voxel_rule,
             "transform": final_t.to_rows(),
             "coarse_transform": reg.coarse_transform.to_rows(),
             "chosen_rank": reg.chosen_rank,
@@ -227,10 +226,9 @@ fn print_summary(reg: &Registration, preset: &str, read_ms: f64, total_ms: f64) 
     outln!(
         "voxel       {}{}",
         r.voxel,
-        if reg.voxel_auto {
-            format!(" (auto: target's longest side / {AUTO_VOXEL_CELLS}; set --voxel to choose)")
-        } else {
-            String::new()
+        match &reg.voxel_rule {
+            Some(rule) => format!(" ({rule}; set --voxel to choose)"),
+            None => String::new(),
         }
     );
     outln!(

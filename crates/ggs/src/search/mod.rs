@@ -176,9 +176,13 @@ pub fn auto_voxel(target: &Cloud, cells: usize) -> Option<f64> {
     if longest <= 0.0 || !longest.is_finite() {
         return None;
     }
-    let raw = longest / cells.max(1) as f64;
-    let mag = 10f64.powf(raw.log10().floor() - 1.0);
-    Some((raw / mag).round() * mag)
+    Some(round_2_digits(longest / cells.max(1) as f64))
+}
+
+/// `x` rounded to 2 significant digits (positive, finite `x`).
+pub fn round_2_digits(x: f64) -> f64 {
+    let mag = 10f64.powf(x.log10().floor() - 1.0);
+    (x / mag).round() * mag
 }
 
 /// One (rotation, translation) candidate.
