@@ -242,6 +242,7 @@ def register(
     distance_quantile: Optional[float] = None,
     max_iterations: Optional[int] = None,
     neighbors: Optional[int] = None,
+    refine_cell: Optional[float] = None,
     progress: Optional[ProgressCallback] = None,
 ) -> Result:
     """Register ``source`` onto ``target`` with no initial guess.
@@ -267,9 +268,12 @@ def register(
       distinct (default 2 × the set's step); max_memory: bytes, or ``"2G"``, ``"512M"``;
       dedup: drop rotations within this many degrees of an earlier one.
     coarse_factor, coarse_keep, coarse_keep_min: the coarse-to-fine search's coarse voxel
-      (2 × voxel), kept fraction (0.02) and minimum kept (16).
+      (default preset 4 × voxel, otherwise 2 ×), kept fraction (0.01, otherwise 0.02) and
+      minimum kept (16).
     max_distance, distance_quantile, max_iterations, neighbors: the final refinement's, as in
-      :func:`refine`.
+      :func:`refine`; refine_cell: it runs on both clouds thinned to cells of this many voxels
+      (default preset 0.2, stopping at steps below 1e-5 rad; 0: full resolution and the
+      reference stopping rules, as ``preset="paper"``).
     threads: worker threads (None: all cores); the result does not depend on it.
     progress: called as ``progress(rotations_scored, total)`` while the search runs.
 
@@ -305,6 +309,7 @@ def register(
         "distance_quantile": distance_quantile,
         "max_iterations": max_iterations,
         "neighbors": neighbors,
+        "refine_cell": refine_cell,
     }
     if top_k is not None and top_k < 1:
         raise ValueError("top_k must be at least 1")

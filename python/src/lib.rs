@@ -156,12 +156,17 @@ struct Options {
     distance_quantile: Option<f64>,
     max_iterations: Option<usize>,
     neighbors: Option<usize>,
+    refine_cell: Option<f64>,
 }
 
 impl Options {
-    /// The coarse-to-fine parameters: the library's defaults changed by those given.
-    fn coarse_to_fine(&self) -> search::CoarseToFine {
-        let d = search::CoarseToFine::default();
+    /// The coarse-to-fine parameters: the preset's (the library's defaults for a preset
+    /// without them) changed by those given.
+    fn coarse_to_fine(&self, preset: search::SearchMode) -> search::CoarseToFine {
+        let d = match preset {
+            search::SearchMode::CoarseToFine(c) => c,
+            search::SearchMode::Exhaustive => search::CoarseToFine::default(),
+        };
         search::CoarseToFine {
             factor: self.coarse_factor.unwrap_or(d.factor),
             keep_fraction: self.coarse_keep.unwrap_or(d.keep_fraction),
@@ -195,11 +200,10 @@ fn pipeline_config(
             .map_err(value_err)?;
     }
     cfg.search.mode = match (&o.search, cfg.search.mode) {
-        (Some(name), _) => {
-            search::SearchMode::from_name(name, o.coarse_to_fine()).map_err(value_err)?
-        }
-        (None, search::SearchMode::CoarseToFine(_)) => {
-            search::SearchMode::CoarseToFine(o.coarse_to_fine())
+        (Some(name), _) => search::SearchMode::from_name(name, o.coarse_to_fine(cfg.search.mode))
+            .map_err(value_err)?,
+        (None, m @ search::SearchMode::CoarseToFine(_)) => {
+            search::SearchMode::CoarseToFine(o.coarse_to_fine(m))
         }
         (None, m) => m,
     };
@@ -228,6 +232,20 @@ fn pipeline_config(
     }
     if o.polish {
         cfg.polish = Some(pipeline::PolishConfig::default());
+    }
+    match o.refine_cell {
+        Some(c) if !(c.is_finite() && c >= 0.0) => {
+            return Err(PyValueError::new_err(format!(
+                "refine_cell must be a non-negative number of voxels, got {c}"
+            )))
+        }
+        Some(0.0) => cfg.final_stage = pipeline::FinalStage::FULL,
+        Some(c) => cfg.final_stage.cell_voxels = c,
+        None => {}
+    }
+    if o.max_iterations.is_some() {
+        // The user's cap, not the stage's.
+        cfg.final_stage.max_iterations = usize::MAX;
     }
     let method = match &o.refine {
         Some(m) => Some(m.as_str()),

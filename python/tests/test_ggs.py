@@ -139,10 +139,16 @@ def test_register_bundled_pair_and_result_fields():
     r32 = ggs.register(source.astype(np.float32).astype(np.float64), target, voxel=0.006)
     r32b = ggs.register(source.astype(np.float32), target, voxel=0.006)
     np.testing.assert_array_equal(r32.transformation, r32b.transformation)
-    # refine() from the verified pose reproduces register()'s final refinement exactly.
+    # refine() from the verified pose reproduces register()'s final refinement at full
+    # resolution exactly; the default's (thinned clouds, a step tolerance) lies close to it.
+    full = ggs.register(source, target, voxel=0.006, refine_cell=0)
     again = ggs.refine(source, target, chosen[0]["transformation"])
-    np.testing.assert_array_equal(again.transformation, r.transformation)
-    assert again.score is None and again.fitness == r.fitness and again.confidence is None
+    np.testing.assert_array_equal(again.transformation, full.transformation)
+    assert again.score is None and again.fitness == full.fitness and again.confidence is None
+    assert ggs.metrics.rre(r.transformation, full.transformation) < 0.05
+    assert ggs.metrics.rte(r.transformation, full.transformation) < 5e-5
+    with pytest.raises(ValueError, match="refine_cell"):
+        ggs.register(source, target, voxel=0.006, refine_cell=-1.0)
 
 
 def test_presets():

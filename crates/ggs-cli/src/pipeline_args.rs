@@ -4,7 +4,7 @@
 use crate::refine_args::{parse_method, RefineOptions};
 use anyhow::{bail, Context, Result};
 use clap::Args;
-use ggs::pipeline::{Preset, RegistrationConfig};
+use ggs::pipeline::{FinalStage, Preset, RegistrationConfig};
 use ggs::rotations::RotationSet;
 use ggs::search;
 
@@ -39,6 +39,11 @@ pub struct PipelineArgs {
     /// Refinement after the coarse search: gicp (default), p2plane, p2p or none.
     #[arg(long)]
     pub refine: Option<String>,
+    /// Final refinement on both clouds thinned to cells of this many voxels (default preset
+    /// 0.2, stopping at steps below 1e-5 rad; 0: full resolution and the reference stopping
+    /// rules, as --preset paper).
+    #[arg(long, value_name = "VOXELS")]
+    pub refine_cell: Option<f64>,
     #[command(flatten)]
     pub refine_options: RefineOptions,
 }
@@ -77,6 +82,18 @@ impl PipelineArgs {
         if self.polish {
             cfg.polish = Some(ggs::pipeline::PolishConfig::default());
         }
+        match self.refine_cell {
+            Some(c) if !(c.is_finite() && c >= 0.0) => {
+                bail!("--refine-cell must be a non-negative number of voxels, got {c}")
+            }
+            Some(0.0) => cfg.final_stage = FinalStage::FULL,
+            Some(c) => cfg.final_stage.cell_voxels = c,
+            None => {}
+        }
+        if self.refine_options.max_iterations.is_some() {
+            // The user's cap, not the stage's.
+            cfg.final_stage.max_iterations = usize::MAX;
+        }
         let method = match &self.refine {
             Some(name) => parse_method(name)?,
             None => cfg.refine.map(|r| r.method),
@@ -101,10 +118,11 @@ pub struct SearchArgs {
     /// rotation whose bound reaches the best: same picks as f64) or f64.
     #[arg(long, default_value = "mixed")]
     pub precision: String,
-    /// Coarse voxel = this × voxel (coarse-to-fine; default 2).
+    /// Coarse voxel = this × voxel (coarse-to-fine; default preset 4, else 2).
     #[arg(long, value_name = "F")]
     pub coarse_factor: Option<f64>,
-    /// Fraction of the rotations kept from the coarse level (coarse-to-fine; default 0.02).
+    /// Fraction of the rotations kept from the coarse level (coarse-to-fine; default preset
+    /// 0.01, else 0.02).
     #[arg(long, value_name = "FRAC")]
     pub coarse_keep: Option<f64>,
     /// Keep at least this many rotations from the coarse level (coarse-to-fine; default 16).
@@ -118,8 +136,12 @@ impl SearchArgs {
         &self,
         preset: search::SearchMode,
     ) -> Result<(search::SearchMode, search::Precision)> {
-        // The library's defaults (`CoarseToFine::default`), changed by the options given.
-        let d = search::CoarseToFine::default();
+        // The preset's parameters (the library's defaults for a preset without them), changed
+        // by the options given.
+        let d = match preset {
+            search::SearchMode::CoarseToFine(c) => c,
+            search::SearchMode::Exhaustive => search::CoarseToFine::default(),
+        };
         let c2f = search::CoarseToFine {
             factor: self.coarse_factor.unwrap_or(d.factor),
             keep_fraction: self.coarse_keep.unwrap_or(d.keep_fraction),

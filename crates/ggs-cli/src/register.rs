@@ -201,6 +201,7 @@ pub fn run(args: RegisterArgs) -> Result<()> {
             "result": reg.search,
             "verification": reg.verification,
             "refine": reg.refine,
+            "refine_cell": reg.refine_cell,
             "timings": reg.timings,
             "read_ms": read_ms,
             "total_ms": total_ms,
@@ -211,6 +212,12 @@ pub fn run(args: RegisterArgs) -> Result<()> {
         print_summary(&reg, &args.pipeline.preset, read_ms, total_ms)?;
         if let Some(r) = &reg.refine {
             print_report(r)?;
+            if reg.refine_cell > 0.0 {
+                outln!(
+                    "            (on both clouds thinned to cells of {:.2} voxel; --refine-cell 0: full resolution)",
+                    reg.refine_cell / reg.voxel
+                );
+            }
         }
         if args.timings {
             print_timings(&reg, read_ms, total_ms)?;

@@ -424,8 +424,12 @@ fn aligned_output_in_the_format_of_its_extension() {
 
 #[test]
 fn coarse_to_fine_and_timings() {
-    let full = register_pair(&["--refine", "none"]);
+    // The paper preset (exhaustive) against its coarse-to-fine search (the library's
+    // parameters: the exhaustive pick).
+    let full = register_pair(&["--preset", "paper", "--refine", "none"]);
     let fast = register_pair(&[
+        "--preset",
+        "paper",
         "--refine",
         "none",
         "--search",
@@ -455,7 +459,15 @@ fn coarse_to_fine_and_timings() {
     ] {
         assert!(fast.contains(needle), "{needle} missing:\n{fast}");
     }
-    let json = register_pair(&["--refine", "none", "--precision", "f64", "--json"]);
+    let json = register_pair(&[
+        "--preset",
+        "paper",
+        "--refine",
+        "none",
+        "--precision",
+        "f64",
+        "--json",
+    ]);
     let v: serde_json::Value = serde_json::from_slice(&json.stdout).unwrap();
     assert_eq!(v["result"]["precision"], "f64");
     assert_eq!(v["result"]["rescored"], 0);

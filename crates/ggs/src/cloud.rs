@@ -79,17 +79,7 @@ impl Cloud {
 
     /// Arithmetic mean of the points, summed in file order (deterministic); `None` if empty.
     pub fn centroid(&self) -> Option<Point> {
-        if self.points.is_empty() {
-            return None;
-        }
-        let mut s = [0.0f64; 3];
-        for p in &self.points {
-            s[0] += p[0];
-            s[1] += p[1];
-            s[2] += p[2];
-        }
-        let n = self.points.len() as f64;
-        Some([s[0] / n, s[1] / n, s[2] / n])
+        centroid_of(&self.points)
     }
 
     /// Apply `p ↦ R·p + t` to every point (`m` is a row-major 4×4 rigid transform).
@@ -110,6 +100,21 @@ pub fn drop_non_finite(points: &mut Vec<Point>) -> usize {
     let before = points.len();
     points.retain(|p| p.iter().all(|v| v.is_finite()));
     before - points.len()
+}
+
+/// Arithmetic mean of `points`, summed in order (deterministic); `None` if empty.
+pub fn centroid_of(points: &[Point]) -> Option<Point> {
+    if points.is_empty() {
+        return None;
+    }
+    let mut s = [0.0f64; 3];
+    for p in points {
+        s[0] += p[0];
+        s[1] += p[1];
+        s[2] += p[2];
+    }
+    let n = points.len() as f64;
+    Some([s[0] / n, s[1] / n, s[2] / n])
 }
 
 #[cfg(test)]

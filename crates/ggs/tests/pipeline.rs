@@ -15,8 +15,8 @@ use ggs::benchmark::motion::random_motion;
 use ggs::io::read_cloud;
 use ggs::manifest::read_manifest;
 use ggs::metrics::{is_success, rre, rte};
-use ggs::pipeline::{register, verify, Registration, RegistrationConfig, VoxelSize};
-use ggs::refine::{refine, RefineConfig};
+use ggs::pipeline::{point_spacing, register, verify, Registration, RegistrationConfig, VoxelSize};
+use ggs::refine::{refine, PreparedPair, RefineConfig};
 use ggs::transform::Rigid;
 use ggs::Cloud;
 use nalgebra::{Rotation3, Vector3};
@@ -132,8 +132,12 @@ fn a_correct_hypothesis_15_degrees_off_ends_correct() {
     {
         let source = read_cloud(&pair.source, None).unwrap().cloud;
         let target = read_cloud(&pair.target, None).unwrap().cloud;
-        let verifier = verify::Verifier::new(&source, &target, pair.voxel, &vcfg);
-        let thinned = verify::Thinned::new(&source, &target, vcfg.cell_voxels * pair.voxel);
+        let icp = RefineConfig::default();
+        let full = PreparedPair::new(&source, &target, icp.neighbors, icp.epsilon).unwrap();
+        let spacing = point_spacing(&full.target);
+        let verifier = verify::Verifier::new(&source, &target, pair.voxel, spacing, &vcfg);
+        let cell = vcfg.cell_voxels * pair.voxel;
+        let thinned = verify::thinned(&source, &target, cell, &icp).unwrap();
         let c = Vector3::from(source.centroid().unwrap());
         let gt = pair.ground_truth;
         let from_truth = refine(&source, &target, &gt, &RefineConfig::default())

@@ -27,11 +27,9 @@
 
 use crate::cloud::{Cloud, Point};
 use crate::error::Result;
-use crate::refine::grid::{median_kth_distance, RadiusSearch};
-use crate::refine::neighbors::PointIndex;
-use crate::refine::{refine, RefineConfig};
+use crate::refine::grid::RadiusSearch;
+use crate::refine::{refine_prepared, PreparedPair, RefineConfig};
 use crate::transform::Rigid;
-use crate::voxel::cell_centroids;
 use rayon::prelude::*;
 
 /// At most this many points of each cloud are used to compute a verification score.
@@ -105,10 +103,15 @@ fn strided(points: &[Point], n: usize) -> Vec<Point> {
 }
 
 impl Verifier {
-    /// Index both clouds for queries at `D` (see [`VerifyConfig`]) for voxel `voxel`.
-    pub fn new(source: &Cloud, target: &Cloud, voxel: f64, cfg: &VerifyConfig) -> Self {
-        let tindex = PointIndex::new(&target.points);
-        let spacing = median_kth_distance(&target.points, &tindex, 2).unwrap_or(0.0);
+    /// Index both clouds for queries at `D` (see [`VerifyConfig`]) for voxel `voxel` and the
+    /// target's point spacing `spacing`.
+    pub fn new(
+        source: &Cloud,
+        target: &Cloud,
+        voxel: f64,
+        spacing: f64,
+        cfg: &VerifyConfig,
+    ) -> Self {
         let distance = (cfg.distance_voxels * voxel).max(cfg.spacing_factor * spacing);
         let source = strided(&source.points, SAMPLE_POINTS);
         let target = strided(&target.points, SAMPLE_POINTS);
@@ -144,19 +147,21 @@ impl Verifier {
     }
 }
 
-/// The two clouds thinned for the verification's ICP.
-pub struct Thinned {
-    pub source: Cloud,
-    pub target: Cloud,
-}
-
-impl Thinned {
-    pub fn new(source: &Cloud, target: &Cloud, cell: f64) -> Self {
-        Thinned {
-            source: Cloud::new(cell_centroids(&source.points, cell)),
-            target: Cloud::new(cell_centroids(&target.points, cell)),
-        }
-    }
+/// The two clouds thinned to one point per cell of `cell`, prepared for the verification's
+/// ICP runs (they share the trees and the local shapes).
+pub fn thinned(
+    source: &Cloud,
+    target: &Cloud,
+    cell: f64,
+    refine_cfg: &RefineConfig,
+) -> Result<PreparedPair> {
+    PreparedPair::thinned(
+        source,
+        target,
+        cell,
+        refine_cfg.neighbors,
+        refine_cfg.epsilon,
+    )
 }
 
 /// One hypothesis after verification's ICP.
@@ -173,7 +178,7 @@ pub struct Checked {
 /// Refine `start` on the thinned clouds and score it, stopping early when it scores below
 /// `reject_ratio × best_so_far` at the check.
 pub fn check(
-    thinned: &Thinned,
+    thinned: &PreparedPair,
     verifier: &Verifier,
     start: &Rigid,
     refine_cfg: &RefineConfig,
@@ -185,7 +190,7 @@ pub fn check(
             max_iterations: iterations,
             ..*refine_cfg
         };
-        refine(&thinned.source, &thinned.target, from, &c)
+        refine_prepared(thinned, from, &c)
     };
     let first = run(start, cfg.check_iterations)?;
     let evidence = verifier.evidence(&first.transform);
@@ -230,7 +235,7 @@ mod tests {
     #[test]
     fn the_right_pose_scores_one_and_a_shift_beyond_d_scores_less() {
         let c = plane(50);
-        let v = Verifier::new(&c, &c, 0.05, &VerifyConfig::default());
+        let v = Verifier::new(&c, &c, 0.05, 0.01, &VerifyConfig::default());
         assert!((v.distance - 0.02).abs() < 1e-12, "{}", v.distance);
         let e = v.evidence(&Rigid::identity());
         assert_eq!(e.score, 1.0);
@@ -247,7 +252,7 @@ mod tests {
     fn the_distance_follows_the_spacing_of_sparse_clouds() {
         let c = plane(20);
         let cfg = VerifyConfig::default();
-        let v = Verifier::new(&c, &c, 0.01, &cfg);
+        let v = Verifier::new(&c, &c, 0.01, 0.01, &cfg);
         assert!((v.distance - 2.0 * 0.01).abs() < 1e-12, "{}", v.distance);
     }
 }

@@ -173,9 +173,10 @@ pub fn local_shapes(
 /// k-NN grid the shapes of a whole cell are computed together (they share their candidates);
 /// clouds the grid cannot bucket fall back to one tree query per point. A shape is a pure
 /// function of the cloud and the point, so which thread computes it first does not matter.
-pub struct LazyShapes<'a> {
-    points: &'a [Point],
-    index: &'a PointIndex,
+///
+/// The cache does not hold the cloud: every query passes the same `points` and `index` the
+/// cache was built with.
+pub struct LazyShapes {
     k: usize,
     epsilon: f64,
     mode: Mode,
@@ -196,8 +197,8 @@ thread_local! {
     static SCRATCH: std::cell::RefCell<KnnScratch> = std::cell::RefCell::new(KnnScratch::default());
 }
 
-impl<'a> LazyShapes<'a> {
-    pub fn new(points: &'a [Point], index: &'a PointIndex, k: usize, epsilon: f64) -> Self {
+impl LazyShapes {
+    pub fn new(points: &[Point], index: &PointIndex, k: usize, epsilon: f64) -> Self {
         let grid = median_kth_distance(points, index, k)
             .and_then(|r| CellGrid::new(points, r * KNN_CELL_FACTOR).map(|g| (g, 1.5 * r)));
         let mode = match grid {
@@ -209,19 +210,13 @@ impl<'a> LazyShapes<'a> {
             },
             None => Mode::Points((0..points.len()).map(|_| OnceLock::new()).collect()),
         };
-        LazyShapes {
-            points,
-            index,
-            k,
-            epsilon,
-            mode,
-        }
+        LazyShapes { k, epsilon, mode }
     }
 
-    /// The shape of point `i`.
+    /// The shape of point `i` of `points` (the cloud and tree the cache was built for).
     #[inline]
-    pub fn get(&self, i: usize) -> &LocalShape {
-        let (points, k, epsilon) = (self.points, self.k, self.epsilon);
+    pub fn get(&self, points: &[Point], index: &PointIndex, i: usize) -> &LocalShape {
+        let (k, epsilon) = (self.k, self.epsilon);
         match &self.mode {
             Mode::Cells {
                 grid,
@@ -238,7 +233,7 @@ impl<'a> LazyShapes<'a> {
                             points,
                             k,
                             *hint,
-                            self.index,
+                            index,
                             &mut scratch.borrow_mut(),
                             &mut out,
                             |i, _, nbrs| neighbourhood_shape(&points[i], nbrs, epsilon),
@@ -251,7 +246,7 @@ impl<'a> LazyShapes<'a> {
             Mode::Points(cache) => cache[i].get_or_init(|| {
                 let p = &points[i];
                 let mut m = Moments::new(p);
-                self.index.for_k_nearest(p, k, |j| m.push(&points[j]));
+                index.for_k_nearest(p, k, |j| m.push(&points[j]));
                 m.shape(epsilon)
             }),
         }
@@ -314,7 +309,7 @@ mod tests {
         assert_eq!(lazy.computed(), 0);
         // The same neighbours (tree or grid), summed in a different order.
         for i in (0..200).rev() {
-            let (a, b) = (lazy.get(i), &eager[i]);
+            let (a, b) = (lazy.get(&pts, &idx, i), &eager[i]);
             assert!((a.normal.dot(&b.normal).abs() - 1.0).abs() < 1e-12, "{i}");
             assert!((a.covariance - b.covariance).amax() < 1e-12, "{i}");
         }

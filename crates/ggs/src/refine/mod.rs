@@ -28,15 +28,16 @@ pub mod estimators;
 pub mod evaluate;
 pub mod grid;
 pub mod neighbors;
+pub mod prepared;
 
 use crate::cloud::{Cloud, Point};
 use crate::error::{GgsError, Result};
 use crate::transform::Rigid;
-use covariance::LazyShapes;
 use estimators::{exp_so3, kabsch, orthonormalize, KabschSums, NormalEquations};
 use grid::RadiusSearch;
 use nalgebra::{Matrix3, Matrix6, SymmetricEigen, Vector3};
 use neighbors::PointIndex;
+pub use prepared::PreparedPair;
 use rayon::prelude::*;
 use std::time::Instant;
 
@@ -319,12 +320,25 @@ pub fn refine(
     init: &Rigid,
     cfg: &RefineConfig,
 ) -> Result<RefineResult> {
-    source.ensure_not_empty("source")?;
-    target.ensure_not_empty("target")?;
-    if cfg.neighbors < 3 {
+    let pair = PreparedPair::new(source, target, cfg.neighbors, cfg.epsilon)?;
+    refine_prepared(&pair, init, cfg)
+}
+
+/// Refine `init` on a prepared pair: its trees and local shapes are built by the first call
+/// and reused by the next ones (same results as [`refine`] on the pair's clouds).
+/// `cfg.neighbors` and `cfg.epsilon` must be the pair's.
+pub fn refine_prepared(
+    pair: &PreparedPair,
+    init: &Rigid,
+    cfg: &RefineConfig,
+) -> Result<RefineResult> {
+    if cfg.neighbors != pair.neighbors || cfg.epsilon != pair.epsilon {
         return Err(GgsError::param(
             "neighbors",
-            "need at least 3 neighbours for a normal",
+            format!(
+                "the pair was prepared for {} neighbours and ε {}, the refinement asks for {} and {}",
+                pair.neighbors, pair.epsilon, cfg.neighbors, cfg.epsilon
+            ),
         ));
     }
     match cfg.correspondence {
@@ -342,71 +356,52 @@ pub fn refine(
         }
         _ => {}
     }
-    // Work in a frame centred on the target's centroid: georeferenced clouds (UTM
-    // coordinates of 1e6 m) would otherwise lose precision in the cross products and sums.
-    // With c the centroid, T_local = Tr(−c)·T·Tr(c) and T = Tr(c)·T_local·Tr(−c).
-    let c = Vector3::from(target.centroid().expect("non-empty"));
-    let shift = |cloud: &Cloud| {
-        Cloud::new(
-            cloud
-                .points
-                .iter()
-                .map(|p| [p[0] - c.x, p[1] - c.y, p[2] - c.z])
-                .collect(),
-        )
-    };
-    let (src_l, tgt_l) = (shift(source), shift(target));
-    let init_l = Rigid::new(init.rotation, init.rotation * c + init.translation - c);
     let (pool, _) = crate::threads::pool(cfg.threads)?;
-    let mut r = pool.install(|| refine_in_pool(&src_l, &tgt_l, &init_l, cfg))?;
-    let t = r.transform;
-    r.transform = Rigid::new(t.rotation, t.translation + c - t.rotation * c);
+    let init_l = pair.to_local(init);
+    let mut r = pool.install(|| refine_in_pool(pair, &init_l, cfg))?;
+    r.transform = pair.to_global(&r.transform);
     Ok(r)
 }
 
-fn refine_in_pool(
-    source: &Cloud,
-    target: &Cloud,
-    init: &Rigid,
-    cfg: &RefineConfig,
-) -> Result<RefineResult> {
+/// The correspondence distance of a run from `t` (`None`: every source point already sits on
+/// a target point, nothing to refine).
+fn correspondence_distance(pair: &PreparedPair, t: &Rigid, cfg: &RefineConfig) -> Option<f64> {
+    match cfg.correspondence {
+        CorrespondenceDistance::Fixed(d) => Some(d),
+        // Quantile of the positive distances: points that already coincide (duplicated
+        // scans, tiny clouds) must not drive d_c to 0.
+        CorrespondenceDistance::Quantile(q) => nearest_distance_quantile(
+            &pair.source.points,
+            t,
+            &pair.target.points,
+            pair.target.index(),
+            cfg.neighbors,
+            q,
+        ),
+    }
+}
+
+fn refine_in_pool(pair: &PreparedPair, init: &Rigid, cfg: &RefineConfig) -> Result<RefineResult> {
     let t0 = Instant::now();
-    let src = &source.points;
-    let tgt = &target.points;
     // Target normals serve every method: point-to-plane residuals, GICP covariances and the
-    // information matrix of the quality report. Source shapes for GICP only. Both lazy.
+    // information matrix of the quality report. Source shapes for GICP only.
     let gicp = cfg.method == Method::Gicp;
-    let (tindex, sindex) = rayon::join(
-        || PointIndex::new(tgt),
-        || gicp.then(|| PointIndex::new(src)),
+    rayon::join(
+        || pair.target.prepare(),
+        || gicp.then(|| pair.source.prepare()),
     );
-    tracing::debug!(ms = t0.elapsed().as_secs_f64() * 1e3, "trees");
-    let (tshapes, sshapes) = rayon::join(
-        || LazyShapes::new(tgt, &tindex, cfg.neighbors, cfg.epsilon),
-        || {
-            sindex
-                .as_ref()
-                .map(|ix| LazyShapes::new(src, ix, cfg.neighbors, cfg.epsilon))
-        },
+    tracing::debug!(
+        ms = t0.elapsed().as_secs_f64() * 1e3,
+        "trees and shape grids"
     );
-    tracing::debug!(ms = t0.elapsed().as_secs_f64() * 1e3, "shape grids");
-    let centroid = source.centroid().expect("non-empty");
+    let src = &pair.source.points;
+    let centroid = crate::cloud::centroid_of(src).expect("non-empty");
     let radius = src
         .iter()
         .map(|p| (v3(p) - v3(&centroid)).norm())
         .fold(0.0, f64::max)
         .max(1e-12);
-
-    let mut t = *init;
-    // `None`: every source point already sits on a target point, nothing to refine.
-    let d_c = match cfg.correspondence {
-        CorrespondenceDistance::Fixed(d) => Some(d),
-        CorrespondenceDistance::Quantile(q) => {
-            // Quantile of the positive distances: points that already coincide (duplicated
-            // scans, tiny clouds) must not drive d_c to 0.
-            nearest_distance_quantile(src, &t, tgt, &tindex, cfg.neighbors, q)
-        }
-    };
+    let d_c = correspondence_distance(pair, init, cfg);
     tracing::debug!(
         ms = t0.elapsed().as_secs_f64() * 1e3,
         "correspondence distance"
@@ -421,141 +416,21 @@ fn refine_in_pool(
     }
     let setup_ms = t0.elapsed().as_secs_f64() * 1e3;
     let t1 = Instant::now();
-    let tsearch = RadiusSearch::new(tgt, d_c, Some(&tindex));
-    let min_pairs = if cfg.method == Method::P2p { 3 } else { 6 };
-    // (fitness, rmse) of the last SETTLE_HISTORY iterations: a repeat of any means the loop
-    // has settled (a cycle, where a few correspondences flip in and out, counts too).
-    let mut history: Vec<(f64, f64)> = Vec::with_capacity(SETTLE_HISTORY);
-    let mut iterations = 0;
-    let mut converged = exact;
-    let mut stop_reason = if exact {
-        "exact overlap"
+    let tsearch = RadiusSearch::new(&pair.target.points, d_c, Some(pair.target.index()));
+    let run = if exact {
+        Run {
+            transform: *init,
+            iterations: 0,
+            converged: true,
+            stop_reason: "exact overlap".into(),
+        }
     } else {
-        "max iterations"
-    }
-    .to_string();
-    let max_iterations = if exact { 0 } else { cfg.max_iterations };
-    for _ in 0..max_iterations {
-        let r = t.rotation;
-        let tt = t.translation;
-        // Accumulate in fixed chunks, then sum the chunks in order: thread-count independent.
-        let parts: Vec<(Stats, NormalEquations, KabschSums)> = src
-            .par_chunks(CHUNK)
-            .enumerate()
-            .map(|(ci, chunk)| {
-                let mut st = Stats::default();
-                let mut ne = NormalEquations::default();
-                let mut ks = KabschSums::default();
-                for (k, p) in chunk.iter().enumerate() {
-                    let pm = r * v3(p) + tt;
-                    let Some((j, dd)) = tsearch.nearest(&[pm.x, pm.y, pm.z]) else {
-                        continue;
-                    };
-                    st.inliers += 1;
-                    st.sq_sum += dd;
-                    let q = v3(&tgt[j]);
-                    match cfg.method {
-                        Method::P2p => ks.push(&pm, &q, cfg.kernel.weight(dd.sqrt())),
-                        Method::P2plane => {
-                            let n = &tshapes.get(j).normal;
-                            let res = n.dot(&(pm - q)).abs();
-                            ne.add_point_to_plane(&pm, &q, n, cfg.kernel.weight(res));
-                        }
-                        Method::Gicp => {
-                            let cs = &sshapes
-                                .as_ref()
-                                .expect("GICP builds source shapes")
-                                .get(ci * CHUNK + k)
-                                .covariance;
-                            let c = tshapes.get(j).covariance + r * cs * r.transpose();
-                            let m = c.try_inverse().unwrap_or_else(Matrix3::identity);
-                            ne.add_gicp(&pm, &q, &m, cfg.kernel.weight(dd.sqrt()));
-                        }
-                    }
-                }
-                (st, ne, ks)
-            })
-            .collect();
-        let mut st = Stats::default();
-        let mut ne = NormalEquations::default();
-        let mut ks = KabschSums::default();
-        for (s, n, k) in &parts {
-            st.inliers += s.inliers;
-            st.sq_sum += s.sq_sum;
-            ne.add(n);
-            ks.add(k);
-        }
-        if st.inliers < min_pairs {
-            stop_reason = "too few correspondences".into();
-            break;
-        }
-        let fitness = st.inliers as f64 / src.len() as f64;
-        let rmse = (st.sq_sum / st.inliers as f64).sqrt();
-        let settled = history.iter().any(|&(pf, pr)| {
-            (fitness - pf).abs() / fitness.max(1e-300) < cfg.relative_fitness
-                && (rmse - pr).abs() / rmse.max(1e-300) < cfg.relative_rmse
-        });
-        if settled {
-            converged = true;
-            stop_reason = "relative change".into();
-            break;
-        }
-        if history.len() == SETTLE_HISTORY {
-            history.remove(0);
-        }
-        history.push((fitness, rmse));
-        iterations += 1;
-        let (dr, dt) = match cfg.method {
-            Method::P2p => match kabsch(&ks) {
-                Some(x) => x,
-                None => {
-                    stop_reason = "too few correspondences".into();
-                    break;
-                }
-            },
-            _ => match ne.solve() {
-                Some(xi) => {
-                    let w = Vector3::new(xi[0], xi[1], xi[2]);
-                    (exp_so3(&w), Vector3::new(xi[3], xi[4], xi[5]))
-                }
-                None => {
-                    stop_reason = "singular system".into();
-                    break;
-                }
-            },
-        };
-        let rotation = orthonormalize(&(dr * t.rotation));
-        t = Rigid::new(rotation, dr * t.translation + dt);
-        let step_rad = estimators::rotation_angle_rad(&dr);
-        tracing::debug!(
-            iteration = iterations,
-            fitness,
-            rmse,
-            step_rad,
-            step_t = dt.norm(),
-            "refine"
-        );
-        if step_rad < cfg.min_rotation_step && dt.norm() < cfg.min_translation_step * radius {
-            converged = true;
-            stop_reason = "small update".into();
-            break;
-        }
-    }
+        iterate(pair, &tsearch, init, radius, cfg)
+    };
     let iterate_ms = t1.elapsed().as_secs_f64() * 1e3;
-    let report = quality(
-        src,
-        tgt,
-        &tsearch,
-        &tshapes,
-        &t,
-        d_c,
-        radius,
-        iterations,
-        converged,
-        stop_reason,
-    );
+    let report = quality(pair, &tsearch, &run, d_c, radius);
     Ok(RefineResult {
-        transform: t,
+        transform: run.transform,
         report,
         method: cfg.method,
         setup_ms,
@@ -564,19 +439,163 @@ fn refine_in_pool(
     })
 }
 
-#[allow(clippy::too_many_arguments)]
-fn quality(
-    src: &[Point],
-    tgt: &[Point],
-    tsearch: &RadiusSearch,
-    tshapes: &LazyShapes,
-    t: &Rigid,
-    d_c: f64,
-    radius: f64,
+/// Where the iterations ended.
+struct Run {
+    transform: Rigid,
     iterations: usize,
     converged: bool,
     stop_reason: String,
+}
+
+/// The correspondence sums of every source point at `t`: inlier statistics, and the
+/// estimator's (normal equations, or Kabsch sums for point-to-point). Accumulated in fixed
+/// chunks summed in order, so independent of the thread count.
+fn accumulate(
+    pair: &PreparedPair,
+    tsearch: &RadiusSearch,
+    t: &Rigid,
+    cfg: &RefineConfig,
+) -> (Stats, NormalEquations, KabschSums) {
+    let (r, tt) = (t.rotation, t.translation);
+    let tgt = &pair.target.points;
+    let parts: Vec<(Stats, NormalEquations, KabschSums)> = pair
+        .source
+        .points
+        .par_chunks(CHUNK)
+        .enumerate()
+        .map(|(ci, chunk)| {
+            let mut st = Stats::default();
+            let mut ne = NormalEquations::default();
+            let mut ks = KabschSums::default();
+            for (k, p) in chunk.iter().enumerate() {
+                let pm = r * v3(p) + tt;
+                let Some((j, dd)) = tsearch.nearest(&[pm.x, pm.y, pm.z]) else {
+                    continue;
+                };
+                st.inliers += 1;
+                st.sq_sum += dd;
+                let q = v3(&tgt[j]);
+                match cfg.method {
+                    Method::P2p => ks.push(&pm, &q, cfg.kernel.weight(dd.sqrt())),
+                    Method::P2plane => {
+                        let n = &pair.target.shape(j).normal;
+                        let res = n.dot(&(pm - q)).abs();
+                        ne.add_point_to_plane(&pm, &q, n, cfg.kernel.weight(res));
+                    }
+                    Method::Gicp => {
+                        let cs = &pair.source.shape(ci * CHUNK + k).covariance;
+                        let c = pair.target.shape(j).covariance + r * cs * r.transpose();
+                        let m = c.try_inverse().unwrap_or_else(Matrix3::identity);
+                        ne.add_gicp(&pm, &q, &m, cfg.kernel.weight(dd.sqrt()));
+                    }
+                }
+            }
+            (st, ne, ks)
+        })
+        .collect();
+    let mut st = Stats::default();
+    let mut ne = NormalEquations::default();
+    let mut ks = KabschSums::default();
+    for (s, n, k) in &parts {
+        st.inliers += s.inliers;
+        st.sq_sum += s.sq_sum;
+        ne.add(n);
+        ks.add(k);
+    }
+    (st, ne, ks)
+}
+
+/// The ICP loop from `init` at the correspondence distance of `tsearch` (see the module
+/// documentation for the stopping rules).
+fn iterate(
+    pair: &PreparedPair,
+    tsearch: &RadiusSearch,
+    init: &Rigid,
+    radius: f64,
+    cfg: &RefineConfig,
+) -> Run {
+    let n_source = pair.source.points.len();
+    let min_pairs = if cfg.method == Method::P2p { 3 } else { 6 };
+    // (fitness, rmse) of the last SETTLE_HISTORY iterations: a repeat of any means the loop
+    // has settled (a cycle, where a few correspondences flip in and out, counts too).
+    let mut history: Vec<(f64, f64)> = Vec::with_capacity(SETTLE_HISTORY);
+    let mut run = Run {
+        transform: *init,
+        iterations: 0,
+        converged: false,
+        stop_reason: "max iterations".into(),
+    };
+    let stop = |run: &mut Run, converged: bool, why: &str| {
+        run.converged = converged;
+        run.stop_reason = why.into();
+    };
+    for _ in 0..cfg.max_iterations {
+        let t = run.transform;
+        let (st, ne, ks) = accumulate(pair, tsearch, &t, cfg);
+        if st.inliers < min_pairs {
+            stop(&mut run, false, "too few correspondences");
+            break;
+        }
+        let fitness = st.inliers as f64 / n_source as f64;
+        let rmse = (st.sq_sum / st.inliers as f64).sqrt();
+        let settled = history.iter().any(|&(pf, pr)| {
+            (fitness - pf).abs() / fitness.max(1e-300) < cfg.relative_fitness
+                && (rmse - pr).abs() / rmse.max(1e-300) < cfg.relative_rmse
+        });
+        if settled {
+            stop(&mut run, true, "relative change");
+            break;
+        }
+        if history.len() == SETTLE_HISTORY {
+            history.remove(0);
+        }
+        history.push((fitness, rmse));
+        run.iterations += 1;
+        let update = match cfg.method {
+            Method::P2p => kabsch(&ks).ok_or("too few correspondences"),
+            _ => ne
+                .solve()
+                .map(|xi| {
+                    let w = Vector3::new(xi[0], xi[1], xi[2]);
+                    (exp_so3(&w), Vector3::new(xi[3], xi[4], xi[5]))
+                })
+                .ok_or("singular system"),
+        };
+        let (dr, dt) = match update {
+            Ok(u) => u,
+            Err(why) => {
+                stop(&mut run, false, why);
+                break;
+            }
+        };
+        let rotation = orthonormalize(&(dr * t.rotation));
+        run.transform = Rigid::new(rotation, dr * t.translation + dt);
+        let step_rad = estimators::rotation_angle_rad(&dr);
+        tracing::debug!(
+            iteration = run.iterations,
+            fitness,
+            rmse,
+            step_rad,
+            step_t = dt.norm(),
+            "refine"
+        );
+        if step_rad < cfg.min_rotation_step && dt.norm() < cfg.min_translation_step * radius {
+            stop(&mut run, true, "small update");
+            break;
+        }
+    }
+    run
+}
+
+/// The quality report at the run's final transform (see the module documentation).
+fn quality(
+    pair: &PreparedPair,
+    tsearch: &RadiusSearch,
+    run: &Run,
+    d_c: f64,
+    radius: f64,
 ) -> QualityReport {
+    let (src, tgt, t) = (&pair.source.points, &pair.target.points, &run.transform);
     let moved: Vec<Point> = src.iter().map(|p| t.apply(p)).collect();
     let parts: Vec<(usize, f64, Matrix6<f64>)> = moved
         .par_chunks(CHUNK)
@@ -588,7 +607,7 @@ fn quality(
                 if let Some((j, dd)) = tsearch.nearest(p) {
                     n_in += 1;
                     sq += dd;
-                    let n = tshapes.get(j).normal;
+                    let n = pair.target.shape(j).normal;
                     let a = v3(p).cross(&n) / radius;
                     let jv = nalgebra::Vector6::new(a.x, a.y, a.z, n.x, n.y, n.z);
                     h += jv * jv.transpose();
@@ -627,9 +646,9 @@ fn quality(
         inlier_rmse: root_mean(sq, inliers),
         inliers,
         correspondence_distance: d_c,
-        iterations,
-        converged,
-        stop_reason,
+        iterations: run.iterations,
+        converged: run.converged,
+        stop_reason: run.stop_reason.clone(),
         information_eigenvalues: eig,
         degenerate,
     }
