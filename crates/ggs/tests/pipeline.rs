@@ -16,7 +16,7 @@ use ggs::io::read_cloud;
 use ggs::manifest::read_manifest;
 use ggs::metrics::{is_success, rre, rte};
 use ggs::pipeline::{point_spacing, register, verify, Registration, RegistrationConfig, VoxelSize};
-use ggs::refine::{refine, PreparedPair, RefineConfig};
+use ggs::refine::{refine, RefineConfig};
 use ggs::transform::Rigid;
 use ggs::Cloud;
 use nalgebra::{Rotation3, Vector3};
@@ -133,8 +133,7 @@ fn a_correct_hypothesis_15_degrees_off_ends_correct() {
         let source = read_cloud(&pair.source, None).unwrap().cloud;
         let target = read_cloud(&pair.target, None).unwrap().cloud;
         let icp = RefineConfig::default();
-        let full = PreparedPair::new(&source, &target, icp.neighbors, icp.epsilon).unwrap();
-        let spacing = point_spacing(&full.target);
+        let spacing = point_spacing(&target.points);
         let verifier = verify::Verifier::new(&source, &target, pair.voxel, spacing, &vcfg);
         let cell = vcfg.cell_voxels * pair.voxel;
         let thinned = verify::thinned(&source, &target, cell, &icp).unwrap();

@@ -30,8 +30,6 @@ pub mod verify;
 
 use crate::cloud::Cloud;
 use crate::error::{GgsError, Result};
-use crate::refine::grid::median_kth_distance;
-use crate::refine::prepared::PreparedCloud;
 use crate::refine::{refine_prepared, PreparedPair, RefineConfig, RefineResult};
 use crate::rotations::{RotationSet, DEFAULT_SET};
 use crate::search::{
@@ -111,11 +109,7 @@ impl VoxelSize {
     }
 }
 
-/// Median distance from a point to its nearest other point, over an evenly strided sample of
-/// 512 points (0 when undefined: a single point, or every point duplicated).
-pub fn point_spacing(cloud: &PreparedCloud) -> f64 {
-    median_kth_distance(&cloud.points, cloud.index(), 2).unwrap_or(0.0)
-}
+pub use crate::spacing::point_spacing;
 
 /// A named configuration.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
@@ -339,18 +333,15 @@ fn register_in_pool(
     let t0 = Instant::now();
     source.ensure_not_empty("source")?;
     target.ensure_not_empty("target")?;
-    // Both clouds in refinement's frame, their trees built once: for the point spacing (the
-    // voxel rule, the verification distance) and the final refinement.
     let refine_cfg = cfg.refine.map(|r| RefineConfig {
         threads: cfg.threads,
         ..r
     });
-    let shapes = refine_cfg.unwrap_or_default();
-    let full = PreparedPair::new(source, target, shapes.neighbors, shapes.epsilon)?;
+    // The point spacing serves the voxel rule and the verification distance.
     let target_spacing = std::sync::OnceLock::new();
-    let spacing_of_target = || *target_spacing.get_or_init(|| point_spacing(&full.target));
+    let spacing_of_target = || *target_spacing.get_or_init(|| point_spacing(&target.points));
     let (voxel, voxel_rule) = cfg.voxel.resolve(target, || {
-        let (s, t) = rayon::join(|| point_spacing(&full.source), spacing_of_target);
+        let (s, t) = rayon::join(|| point_spacing(&source.points), spacing_of_target);
         s.max(t)
     })?;
     let mut search = cfg.search.clone();
@@ -391,7 +382,6 @@ fn register_in_pool(
     let t_refine = Instant::now();
     let refined = match &refine_cfg {
         Some(r) => Some(refine_final(
-            &full,
             source,
             target,
             voxel,
@@ -426,10 +416,9 @@ fn register_in_pool(
     })
 }
 
-/// The final refinement of `start`: on `full`, or on both clouds thinned to cells of
+/// The final refinement of `start`: at full resolution, or on both clouds thinned to cells of
 /// `stage.cell_voxels × voxel`, with `stage.min_step` (see [`FinalStage`]).
 fn refine_final(
-    full: &PreparedPair,
     source: &Cloud,
     target: &Cloud,
     voxel: f64,
@@ -453,7 +442,8 @@ fn refine_final(
         ..*r
     };
     if stage.cell_voxels == 0.0 {
-        return refine_prepared(full, start, &r);
+        let full = PreparedPair::new(source, target, r.neighbors, r.epsilon)?;
+        return refine_prepared(&full, start, &r);
     }
     let cell = stage.cell_voxels * voxel;
     let thinned = PreparedPair::thinned(source, target, cell, r.neighbors, r.epsilon)?;
@@ -632,7 +622,7 @@ mod tests {
     }
 
     fn spacing(c: &Cloud) -> f64 {
-        point_spacing(&PreparedPair::new(c, c, 20, 1e-3).unwrap().target)
+        point_spacing(&c.points)
     }
 
     #[test]
