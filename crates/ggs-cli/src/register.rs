@@ -297,6 +297,14 @@ fn print_summary(reg: &Registration, preset: &str, read_ms: f64, total_ms: f64) 
         g.fft_len[1],
         g.fft_len[2]
     );
+    if r.searched_points < r.source_points {
+        outln!(
+            "            source searched as {} representatives of its {} points (one per cell of voxel / {})",
+            r.searched_points,
+            r.source_points,
+            search::REPRESENTATIVE_DIVISIONS
+        );
+    }
     if let Some(c) = &r.coarse_level {
         let f = &c.geometry.fft_len;
         outln!(
