@@ -58,11 +58,13 @@ def load_pairs(manifest, names, limit):
     return [(n, *pairs[n]) for n in (names or order)][:limit]
 
 
-def run_ggs(exe, threads):
+def run_ggs(exe, threads, given_voxel=True):
+    """`ggs register` at the pair's voxel, or with no flag at all (the automatic voxel)."""
     def register(src, tgt, voxel):
+        voxel_args = ["--voxel", str(voxel)] if given_voxel else []
         t0 = time.perf_counter()
         out = subprocess.run(
-            [exe, "register", src, tgt, "--voxel", str(voxel), "--threads", str(threads), "-q"],
+            [exe, "register", src, tgt, *voxel_args, "--threads", str(threads), "-q"],
             check=True, capture_output=True, text=True,
         )
         dt = time.perf_counter() - t0
@@ -164,7 +166,11 @@ def main():
     except ImportError:
         pass
     os.environ.setdefault("OMP_NUM_THREADS", str(a.threads))
-    methods = {"ggs": run_ggs(a.ggs, a.threads), **open3d_methods(a.threads)}
+    methods = {
+        "ggs": run_ggs(a.ggs, a.threads),
+        "ggs (no flag)": run_ggs(a.ggs, a.threads, given_voxel=False),
+        **open3d_methods(a.threads),
+    }
     rows = []
     solved = {m: 0 for m in methods}
     count = 0
