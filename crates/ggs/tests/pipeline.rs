@@ -209,3 +209,38 @@ fn the_pipeline_is_bit_identical_on_1_and_2_threads() {
         assert_eq!(ha.iterations, hb.iterations);
     }
 }
+
+/// The bundled PCL pair in georeferenced coordinates (UTM-like: 500 km east, 4000 km north):
+/// the same rotation, the same pose relative to the clouds, the same confidence and no
+/// ambiguity (near-duplicate poses once counted as distinct through their translations).
+#[test]
+fn georeferenced_coordinates_change_nothing() {
+    let dir = common::repo_root().join("tests/data");
+    let source = read_cloud(&dir.join("bun0.pcd"), None).unwrap().cloud;
+    let target = read_cloud(&dir.join("bun4.pcd"), None).unwrap().cloud;
+    let o = Vector3::new(5e5, 4e6, 100.0);
+    let shift = |c: &Cloud| {
+        Cloud::new(
+            c.points
+                .iter()
+                .map(|p| [p[0] + o.x, p[1] + o.y, p[2] + o.z])
+                .collect(),
+        )
+    };
+    let cfg = RegistrationConfig::default();
+    let near = register(&source, &target, &cfg).unwrap();
+    let far = register(&shift(&source), &shift(&target), &cfg).unwrap();
+    // T_far = Tr(o)·T·Tr(−o).
+    let r = near.transform.rotation;
+    let expected = Rigid::new(r, near.transform.translation + o - r * o);
+    assert!(rre(&far.transform, &expected) < 0.01);
+    // Compared where they put the source (the translations themselves carry the rotations'
+    // last bits times a 4000 km lever).
+    let c = shift(&source).centroid().unwrap();
+    let (a, b) = (far.transform.apply(&c), expected.apply(&c));
+    let gap = ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt();
+    assert!(gap < 1e-4, "{gap}");
+    assert_eq!(far.ambiguous, near.ambiguous);
+    assert!(!far.ambiguous);
+    assert!((far.confidence - near.confidence).abs() < 0.05);
+}

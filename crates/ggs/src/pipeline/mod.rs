@@ -537,9 +537,15 @@ fn verify_hypotheses(
             }
         })
         .expect("the winner is always verified");
+    // Translations compared where they put the source's centroid: `t` itself depends on the
+    // frame's origin (1° apart about an origin 4000 km away, as in UTM coordinates, is 70 km).
+    let c = source.centroid().expect("non-empty");
     let distinct = |a: &Rigid, b: &Rigid| {
+        let (pa, pb) = (a.apply(&c), b.apply(&c));
+        let moved =
+            ((pa[0] - pb[0]).powi(2) + (pa[1] - pb[1]).powi(2) + (pa[2] - pb[2]).powi(2)).sqrt();
         rotation_angle_deg(&a.rotation, &b.rotation) > coarse.distinct_radius_deg
-            || (a.translation - b.translation).norm() > DISTINCT_TRANSLATION_VOXELS * voxel
+            || moved > DISTINCT_TRANSLATION_VOXELS * voxel
     };
     let runner_up = (0..out.len())
         .filter(|&k| distinct(&out[k].transform, &out[chosen].transform))

@@ -219,8 +219,16 @@ pub fn auto_voxel(target: &Cloud, cells: usize) -> Option<f64> {
 
 /// `x` rounded to 2 significant digits (positive, finite `x`).
 pub fn round_2_digits(x: f64) -> f64 {
-    let mag = 10f64.powf(x.log10().floor() - 1.0);
-    (x / mag).round() * mag
+    let e = x.log10().floor() as i32 - 1;
+    // Divide by a power of ten above 1 (exact) rather than multiply by one below (inexact):
+    // 93 / 1e4 prints as 0.0093, 93 × 1e-4 as 0.009300000000000001.
+    if e < 0 {
+        let m = 10f64.powi(-e);
+        (x * m).round() / m
+    } else {
+        let m = 10f64.powi(e);
+        (x / m).round() * m
+    }
 }
 
 /// One (rotation, translation) candidate.
