@@ -607,18 +607,15 @@ impl<T: Real> CpuCorrelator<T> {
     }
 }
 
-/// `a[i] ← a[i]·b[i]` (complex), compiled for the widest vector unit the CPU has.
+/// `a[i] ← a[i]·b[i]` (complex), compiled for the vector unit of [`crate::simd::level`].
 fn multiply_spectra<T: Real>(a: &mut [Complex<T>], b: &[Complex<T>]) {
     #[cfg(target_arch = "x86_64")]
-    {
-        if std::arch::is_x86_feature_detected!("avx512f") {
-            // SAFETY: the CPU has AVX-512F (checked just above).
-            return unsafe { multiply_spectra_avx512(a, b) };
-        }
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the CPU has AVX2 (checked just above).
-            return unsafe { multiply_spectra_avx2(a, b) };
-        }
+    match crate::simd::level() {
+        // SAFETY: `simd::level` returns Avx512 only when the CPU has AVX-512F.
+        crate::simd::Level::Avx512 => return unsafe { multiply_spectra_avx512(a, b) },
+        // SAFETY: Avx2 only when the CPU has AVX2.
+        crate::simd::Level::Avx2 => return unsafe { multiply_spectra_avx2(a, b) },
+        crate::simd::Level::Scalar => {}
     }
     multiply_spectra_body(a, b)
 }

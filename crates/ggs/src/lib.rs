@@ -40,6 +40,7 @@ pub mod rng;
 pub mod rotated;
 pub mod rotations;
 pub mod search;
+pub mod simd;
 pub mod spacing;
 pub mod threads;
 pub mod transform;

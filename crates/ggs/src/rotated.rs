@@ -167,16 +167,15 @@ impl RotatableCloud {
     /// of a cell boundary is redone point by point with the exact quotient.
     pub fn voxelize<T: Real>(&self, r: &[[f64; 3]; 3], min: &Point, s: f64, grid: GridView<'_, T>) {
         #[cfg(target_arch = "x86_64")]
-        {
-            if std::arch::is_x86_feature_detected!("avx512f") {
-                // SAFETY: the CPU has AVX-512F (checked just above), the only requirement of
-                // `voxelize_avx512`.
-                return unsafe { self.voxelize_avx512::<T>(r, min, s, grid) };
+        match crate::simd::level() {
+            // SAFETY: `simd::level` returns Avx512 only when the CPU has AVX-512F, the only
+            // requirement of `voxelize_avx512`.
+            crate::simd::Level::Avx512 => {
+                return unsafe { self.voxelize_avx512::<T>(r, min, s, grid) }
             }
-            if std::arch::is_x86_feature_detected!("avx2") {
-                // SAFETY: the CPU has AVX2 (checked just above).
-                return unsafe { self.voxelize_avx2::<T>(r, min, s, grid) };
-            }
+            // SAFETY: Avx2 only when the CPU has AVX2.
+            crate::simd::Level::Avx2 => return unsafe { self.voxelize_avx2::<T>(r, min, s, grid) },
+            crate::simd::Level::Scalar => {}
         }
         self.voxelize_body(r, min, s, grid)
     }
