@@ -1,13 +1,16 @@
 #!/usr/bin/env python3
 """A large-cloud registration benchmark anyone can rerun (issue 22).
 
-Densifies the lidar_koide pair of ../shared/data (two 69k-point LiDAR sweeps) by jittered
-copies to N points per cloud (default 4.8 million; seeded), moves the source by a known
-31° motion, writes both as KITTI .bin (float32 x y z intensity), then runs
-`ggs register --json` on them (the defaults, and any extra arguments) and prints the time of
-every stage, the peak resident memory (wait4) and the error against the ground truth.
+Densifies lidar_koide of ../shared/data by jittered copies to N points per cloud (default
+4.8 million; seeded), moves the source by a known 31° motion, writes both as KITTI .bin
+(float32 x y z intensity), then runs `ggs register --json` on them (the defaults, and any
+extra arguments) and prints the time of every stage, the peak resident memory (wait4) and
+the error against the ground truth. `--pair self` (default): one sweep (251370668, 69k
+points) densified twice with independent jitter, so the ground truth is the motion itself,
+exactly; `--pair sweeps`: the two sweeps, against the pairs.tsv ground truth (itself a GICP
+result, good to about 0.1-0.2°).
 
-    python3 scripts/large_pair.py [--points 4800000] [--dir /tmp/ggs-large-pair] [-- ggs args]
+    python3 scripts/large_pair.py [--points 4800000] [--pair self|sweeps] [-- ggs args]
 
 Needs numpy and a release build (`cargo build --release`).
 """
@@ -83,13 +86,17 @@ def main():
     ap.add_argument("--seed", type=int, default=2022)
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--ggs", default=str(GGS), help="the ggs binary")
+    ap.add_argument("--pair", choices=["self", "sweeps"], default="self")
     ap.add_argument("ggs_args", nargs="*", help="extra `ggs register` arguments (after --)")
     args = ap.parse_args()
     tmp = Path(args.dir)
     tmp.mkdir(parents=True, exist_ok=True)
     src_rel, tgt_rel, truth = pair_row()
     move = motion()
-    src_bin, tgt_bin = tmp / f"source_{args.points}.bin", tmp / f"target_{args.points}.bin"
+    if args.pair == "self":
+        src_rel, truth = tgt_rel, np.eye(4)
+    tag = f"{args.pair}_{args.points}_{args.seed}"
+    src_bin, tgt_bin = tmp / f"source_{tag}.bin", tmp / f"target_{tag}.bin"
     if not (src_bin.exists() and tgt_bin.exists()):
         rng = np.random.default_rng(args.seed)
         src = densify(read_points(args.ggs, DATA / src_rel, tmp), args.points, rng)
@@ -111,7 +118,7 @@ def main():
     r = json.loads(out)
     t = np.array(r["transform"])
     rre, rte = errors(t, truth_moved)
-    print(f"points per cloud  {args.points}")
+    print(f"pair              {args.pair}, {args.points} points per cloud")
     print(f"command           {' '.join(cmd)}")
     print(f"voxel             {r['voxel']} ({r.get('voxel_rule') or 'given'})")
     tm = r["timings"]
