@@ -171,7 +171,7 @@ impl Options {
             factor: self.coarse_factor.unwrap_or(d.factor),
             keep_fraction: self.coarse_keep.unwrap_or(d.keep_fraction),
             keep_min: self.coarse_keep_min.unwrap_or(d.keep_min),
-            neighbour_deg: None,
+            neighbour_deg: d.neighbour_deg,
         }
     }
 }
