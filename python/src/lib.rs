@@ -233,15 +233,11 @@ fn pipeline_config(
     if o.polish {
         cfg.polish = Some(pipeline::PolishConfig::default());
     }
-    match o.refine_cell {
-        Some(c) if !(c.is_finite() && c >= 0.0) => {
-            return Err(PyValueError::new_err(format!(
-                "refine_cell must be a non-negative number of voxels, got {c}"
-            )))
-        }
-        Some(0.0) => cfg.final_stage = pipeline::FinalStage::FULL,
-        Some(c) => cfg.final_stage.cell_voxels = c,
-        None => {}
+    if let Some(c) = o.refine_cell {
+        cfg.final_stage = cfg
+            .final_stage
+            .with_cell_voxels(c)
+            .map_err(|e| PyValueError::new_err(format!("refine_cell: {e}")))?;
     }
     if o.max_iterations.is_some() {
         // The user's cap, not the stage's.

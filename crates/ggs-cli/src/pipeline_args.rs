@@ -4,7 +4,7 @@
 use crate::refine_args::{parse_method, RefineOptions};
 use anyhow::{bail, Context, Result};
 use clap::Args;
-use ggs::pipeline::{FinalStage, Preset, RegistrationConfig};
+use ggs::pipeline::{Preset, RegistrationConfig};
 use ggs::rotations::RotationSet;
 use ggs::search;
 
@@ -82,13 +82,11 @@ impl PipelineArgs {
         if self.polish {
             cfg.polish = Some(ggs::pipeline::PolishConfig::default());
         }
-        match self.refine_cell {
-            Some(c) if !(c.is_finite() && c >= 0.0) => {
-                bail!("--refine-cell must be a non-negative number of voxels, got {c}")
-            }
-            Some(0.0) => cfg.final_stage = FinalStage::FULL,
-            Some(c) => cfg.final_stage.cell_voxels = c,
-            None => {}
+        if let Some(c) = self.refine_cell {
+            cfg.final_stage = cfg
+                .final_stage
+                .with_cell_voxels(c)
+                .context("--refine-cell")?;
         }
         if self.refine_options.max_iterations.is_some() {
             // The user's cap, not the stage's.

@@ -138,14 +138,7 @@ mod tests {
     fn equals_the_tree_computation_on_dense_sparse_and_mixed_clouds() {
         let mut r = crate::test_rng::uniform(31);
         // A noisy sphere shell, a sparse volume, and a dense blob with far outliers.
-        let shell: Vec<Point> = (0..20_000)
-            .map(|_| {
-                let (u, v) = (r() * std::f64::consts::TAU, r() * 2.0 - 1.0);
-                let w = (1.0 - v * v).sqrt();
-                let rad = 1.0 + 0.01 * r();
-                [rad * w * u.cos(), rad * w * u.sin(), rad * v]
-            })
-            .collect();
+        let shell = crate::test_rng::noisy_sphere(&mut r, 20_000);
         let volume: Vec<Point> = (0..700).map(|_| [r() * 50.0, r() * 3.0, r()]).collect();
         let mut mixed: Vec<Point> = (0..5000)
             .map(|_| [r() * 0.01, r() * 0.01, r() * 0.01])

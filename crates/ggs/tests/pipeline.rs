@@ -16,7 +16,7 @@ use ggs::io::read_cloud;
 use ggs::manifest::read_manifest;
 use ggs::metrics::{is_success, rre, rte};
 use ggs::pipeline::{point_spacing, register, verify, Registration, RegistrationConfig, VoxelSize};
-use ggs::refine::{refine, RefineConfig};
+use ggs::refine::{refine, PreparedPair, RefineConfig};
 use ggs::transform::Rigid;
 use ggs::Cloud;
 use nalgebra::{Rotation3, Vector3};
@@ -136,7 +136,8 @@ fn a_correct_hypothesis_15_degrees_off_ends_correct() {
         let spacing = point_spacing(&target.points);
         let verifier = verify::Verifier::new(&source, &target, pair.voxel, spacing, &vcfg);
         let cell = vcfg.cell_voxels * pair.voxel;
-        let thinned = verify::thinned(&source, &target, cell, &icp).unwrap();
+        let thinned =
+            PreparedPair::thinned(&source, &target, cell, icp.neighbors, icp.epsilon).unwrap();
         let c = Vector3::from(source.centroid().unwrap());
         let gt = pair.ground_truth;
         let from_truth = refine(&source, &target, &gt, &RefineConfig::default())

@@ -180,6 +180,25 @@ impl FinalStage {
         min_step: 1e-5,
         max_iterations: 100,
     };
+
+    /// This stage on cells of `cell_voxels` voxels; 0 is [`FinalStage::FULL`] (full
+    /// resolution and the refinement's own stopping rules). The front ends' `--refine-cell`.
+    pub fn with_cell_voxels(self, cell_voxels: f64) -> Result<FinalStage> {
+        if !(cell_voxels.is_finite() && cell_voxels >= 0.0) {
+            return Err(GgsError::param(
+                "refine cell",
+                format!("must be a non-negative number of voxels, got {cell_voxels}"),
+            ));
+        }
+        Ok(if cell_voxels == 0.0 {
+            FinalStage::FULL
+        } else {
+            FinalStage {
+                cell_voxels,
+                ..self
+            }
+        })
+    }
 }
 
 /// Everything a registration needs.
@@ -426,15 +445,7 @@ fn refine_final(
     r: &RefineConfig,
     stage: FinalStage,
 ) -> Result<RefineResult> {
-    if !(stage.cell_voxels.is_finite() && stage.cell_voxels >= 0.0) {
-        return Err(GgsError::param(
-            "refine cell",
-            format!(
-                "must be a non-negative number of voxels, got {}",
-                stage.cell_voxels
-            ),
-        ));
-    }
+    let stage = stage.with_cell_voxels(stage.cell_voxels)?;
     let r = RefineConfig {
         min_rotation_step: r.min_rotation_step.max(stage.min_step),
         min_translation_step: r.min_translation_step.max(stage.min_step),
@@ -508,7 +519,7 @@ fn verify_hypotheses(
         threads: cfg.threads,
         ..RefineConfig::default()
     });
-    let thinned = verify::thinned(source, target, cell, &icp)?;
+    let thinned = PreparedPair::thinned(source, target, cell, icp.neighbors, icp.epsilon)?;
     let mut out: Vec<VerifiedHypothesis> = Vec::new();
     let mut best = 0.0f64;
     for (rank, h) in candidates(coarse, v).iter().enumerate() {

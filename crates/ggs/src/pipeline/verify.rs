@@ -147,23 +147,6 @@ impl Verifier {
     }
 }
 
-/// The two clouds thinned to one point per cell of `cell`, prepared for the verification's
-/// ICP runs (they share the trees and the local shapes).
-pub fn thinned(
-    source: &Cloud,
-    target: &Cloud,
-    cell: f64,
-    refine_cfg: &RefineConfig,
-) -> Result<PreparedPair> {
-    PreparedPair::thinned(
-        source,
-        target,
-        cell,
-        refine_cfg.neighbors,
-        refine_cfg.epsilon,
-    )
-}
-
 /// One hypothesis after verification's ICP.
 #[derive(Debug, Clone, Copy)]
 pub struct Checked {

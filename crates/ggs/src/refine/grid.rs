@@ -560,14 +560,7 @@ mod tests {
     fn cloud(n: usize, seed: u64) -> Vec<Point> {
         let mut r = crate::test_rng::uniform(seed);
         // A noisy sphere plus a few far outliers: dense and sparse regions.
-        let mut pts: Vec<Point> = (0..n)
-            .map(|_| {
-                let (u, v) = (r() * std::f64::consts::TAU, r() * 2.0 - 1.0);
-                let w = (1.0 - v * v).sqrt();
-                let rad = 1.0 + 0.01 * r();
-                [rad * w * u.cos(), rad * w * u.sin(), rad * v]
-            })
-            .collect();
+        let mut pts = crate::test_rng::noisy_sphere(&mut r, n);
         pts.extend((0..5).map(|i| [3.0 + i as f64, -2.0, 0.5 * i as f64]));
         pts
     }
