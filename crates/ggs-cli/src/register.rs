@@ -4,6 +4,7 @@ use crate::files::{self, InputArgs};
 use crate::refine_args::{parse_method, print_report, read_matrix, RefineOptions};
 use anyhow::{Context, Result};
 use clap::Args;
+use ggs::html::registration::RegistrationReport;
 use ggs::io::{self, ply, ReadOptions};
 use ggs::pipeline::{self, Registration, RegistrationConfig, Verification, VoxelSize};
 use ggs::refine;
@@ -52,6 +53,10 @@ pub struct RegisterArgs {
     /// Write target (blue) and moved source (orange) together to this PLY file.
     #[arg(long, value_name = "OUT.ply")]
     pub overlay: Option<PathBuf>,
+    /// Write a self-contained HTML report (pictures before and after, hypotheses, quality,
+    /// timings, the command line) to this file.
+    #[arg(long, value_name = "OUT.html")]
+    pub report: Option<PathBuf>,
     /// No progress bar and no warnings.
     #[arg(short, long)]
     pub quiet: bool,
@@ -179,6 +184,15 @@ pub fn run(args: RegisterArgs) -> Result<()> {
         ply::write_ply(path, &pts, Some(&colors), Default::default())?;
     }
     let total_ms = t0.elapsed().as_secs_f64() * 1e3;
+    if let Some(path) = &args.report {
+        let mut report = RegistrationReport::new(&source, &target, reg.clone());
+        report.source_name = args.source.display().to_string();
+        report.target_name = args.target.display().to_string();
+        report.command = Some(command_line());
+        report.read_ms = Some(read_ms);
+        report.total_ms = Some(total_ms);
+        report.write(path)?;
+    }
     if !args.quiet {
         for w in &reg.warnings {
             eprintln!("warning: {w}");
@@ -224,6 +238,26 @@ pub fn run(args: RegisterArgs) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// This process's command line, each argument quoted for a POSIX shell where it needs it.
+fn command_line() -> String {
+    let quote = |a: String| {
+        let plain = !a.is_empty()
+            && a.chars()
+                .all(|c| c.is_ascii_alphanumeric() || "-_./=:,+@%".contains(c));
+        if plain {
+            a
+        } else {
+            format!("'{}'", a.replace('\'', "'\\''"))
+        }
+    };
+    let mut args = std::env::args();
+    let program = args.next().map(|_| "ggs".to_string()).unwrap_or_default();
+    std::iter::once(program)
+        .chain(args.map(quote))
+        .collect::<Vec<_>>()
+        .join(" ")
 }
 
 fn print_summary(reg: &Registration, preset: &str, read_ms: f64, total_ms: f64) -> Result<()> {

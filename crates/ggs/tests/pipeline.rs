@@ -38,18 +38,8 @@ fn config_with(voxel: VoxelSize, threads: usize) -> RegistrationConfig {
 
 /// Rank (in coarse order) of the first verified hypothesis within 10° and 3 voxels.
 fn right_rank(reg: &Registration, truth: &Rigid) -> Option<usize> {
-    let v = reg.verification.as_ref()?;
-    v.hypotheses
-        .iter()
-        .find(|h| {
-            is_success(
-                rre(&h.transform, truth),
-                rte(&h.transform, truth),
-                10.0,
-                3.0 * reg.voxel,
-            )
-        })
-        .map(|h| h.rank)
+    reg.verification.as_ref()?;
+    ggs::benchmark::right_pose_rank(reg, truth, 10.0, 3.0 * reg.voxel)
 }
 
 #[test]

@@ -3,8 +3,10 @@
 //!
 //! - [`protocol`]: pair lists, ground truth and default parameters of each protocol;
 //! - [`row`]: one pair's result ([`PairRow`]) and the resumable CSV file;
-//! - [`report`]: recall, mean errors, the Markdown table and the recall curves (SVG).
+//! - [`report`]: recall, mean errors, the Markdown table and the recall curves (SVG);
+//! - [`html`]: `report.html`, the page with charts, every pair and a gallery of failures.
 
+pub mod html;
 pub mod motion;
 pub mod protocol;
 pub mod report;
@@ -193,8 +195,19 @@ fn check_run_config(out: &Path, fingerprint: &serde_json::Value, resuming: bool)
 /// Register one pair and score it. Errors reading or registering the pair are recorded in
 /// the row (a failed pair counts as unsuccessful), not returned.
 pub fn run_pair(pair: &BenchPair, cfg: &RunConfig) -> PairRow {
+    run_pair_pictured(pair, cfg, false).0
+}
+
+/// [`run_pair`], and with `picture`, the gallery picture of a pair that failed with an
+/// estimate ([`html::failure_picture`]).
+fn run_pair_pictured(
+    pair: &BenchPair,
+    cfg: &RunConfig,
+    picture: bool,
+) -> (PairRow, Option<crate::render::Image>) {
     let t0 = Instant::now();
     let mut row = PairRow::new(&pair.id, pair.overlap);
+    let mut image = None;
     let voxel = cfg.voxel.or(pair.voxel).or(cfg.default_voxel);
     let result = (|| -> Result<()> {
         let voxel = voxel.ok_or_else(|| GgsError::param("voxel", "no voxel size for this pair"))?;
@@ -215,6 +228,15 @@ pub fn run_pair(pair: &BenchPair, cfg: &RunConfig) -> PairRow {
         pc.voxel = VoxelSize::Fixed(voxel);
         let reg = register(&source, &target, &pc)?;
         fill_row(&mut row, &reg, &truth);
+        if picture && !row.success {
+            let t = &reg.transform;
+            image = Some(html::failure_picture(
+                &source.points,
+                &target.points,
+                t,
+                &truth,
+            ));
+        }
         Ok(())
     })();
     if let Err(e) = result {
@@ -222,7 +244,32 @@ pub fn run_pair(pair: &BenchPair, cfg: &RunConfig) -> PairRow {
         row.success = false;
     }
     row.total_ms = t0.elapsed().as_secs_f64() * 1e3;
-    row
+    (row, image)
+}
+
+/// Coarse rank of the first hypothesis whose pose meets the thresholds: the verified poses
+/// (after polish and the verification's ICP) when the pipeline verified, else the coarse
+/// search's grid poses. `None`: no hypothesis was right, so no choice among them could
+/// have solved the pair.
+pub fn right_pose_rank(
+    reg: &Registration,
+    truth: &Rigid,
+    max_rre_deg: f64,
+    max_rte: f64,
+) -> Option<usize> {
+    let right = |t: &Rigid| is_success(rre(t, truth), rte(t, truth), max_rre_deg, max_rte);
+    match &reg.verification {
+        Some(v) => v
+            .hypotheses
+            .iter()
+            .find(|h| right(&h.transform))
+            .map(|h| h.rank),
+        None => reg
+            .search
+            .hypotheses
+            .iter()
+            .position(|h| right(&h.transform)),
+    }
 }
 
 /// The row's results from a registration, scored against `truth`.
@@ -254,6 +301,15 @@ fn fill_row(row: &mut PairRow, reg: &Registration, truth: &Rigid) {
     row.rte = rte(&reg.transform, truth);
     row.success = is_success(row.rre, row.rte, row.max_rre_deg, row.max_rte);
     row.transform = reg.transform.to_rows().concat();
+    row.right_rank = right_pose_rank(reg, truth, row.max_rre_deg, row.max_rte);
+}
+
+/// Write a gallery picture (creating `gallery/`), atomically.
+fn save_picture(path: &Path, image: &crate::render::Image) -> Result<()> {
+    if let Some(dir) = path.parent() {
+        std::fs::create_dir_all(dir).map_err(|e| GgsError::io(dir, e))?;
+    }
+    crate::io::write_atomic(path, &image.png())
 }
 
 /// What a finished run wrote and measured.
@@ -268,7 +324,8 @@ pub struct RunOutcome {
 
 /// Run `pairs` into `out` (created if needed): `run.json` (the configuration), `pairs.csv`
 /// (one line per pair, appended as each finishes), then `results.json` (summary and rows),
-/// `summary.md` and `recall.svg`, each written atomically. Pairs already in `out/pairs.csv`
+/// `summary.md`, `recall.svg` and `report.html` ([`html`]; also rewritten while the run is in
+/// progress), each written atomically, and a picture per failed pair in `gallery/`. Pairs already in `out/pairs.csv`
 /// are not run again; a directory whose `run.json` differs from this configuration is refused.
 /// `progress(done, total, row)` is called after every pair, resumed ones included.
 pub fn run(
@@ -286,6 +343,13 @@ pub fn run(
         earlier.into_iter().map(|r| (r.id.clone(), r)).collect();
     let mut rows = Vec::with_capacity(pairs.len());
     let mut resumed = 0;
+    let ctx = html::ReportContext {
+        protocol: name,
+        total_pairs: pairs.len(),
+        metres,
+        out,
+    };
+    let mut last_report: Option<Instant> = None;
     for (k, pair) in pairs.iter().enumerate() {
         let row = match done.remove(&pair.id) {
             Some(r) => {
@@ -293,13 +357,21 @@ pub fn run(
                 r
             }
             None => {
-                let r = run_pair(pair, cfg);
+                let (r, picture) = run_pair_pictured(pair, cfg, true);
+                if let Some(image) = picture {
+                    save_picture(&html::picture_path(out, &r.id), &image)?;
+                }
                 csv.append(&r)?;
                 r
             }
         };
         progress(k + 1, pairs.len(), &row);
         rows.push(row);
+        let due = last_report.is_none_or(|t| t.elapsed().as_secs_f64() >= html::REWRITE_EVERY_S);
+        if due && rows.len() < pairs.len() {
+            html::write_report(&ctx, &rows)?;
+            last_report = Some(Instant::now());
+        }
     }
     let summary = report::Summary::of(name, &rows);
     let json = serde_json::json!({ "summary": &summary, "pairs": &rows });
@@ -311,6 +383,7 @@ pub fn run(
     )?;
     write("summary.md", summary.markdown(&rows, metres))?;
     write("recall.svg", report::recall_curves_svg(name, &rows))?;
+    html::write_report(&ctx, &rows)?;
     Ok(RunOutcome {
         rows,
         summary,

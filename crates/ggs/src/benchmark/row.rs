@@ -45,6 +45,9 @@ pub struct PairRow {
     /// (absent without verification).
     pub chosen_rank: Option<usize>,
     pub verified: Option<usize>,
+    /// Coarse rank of the first hypothesis whose pose meets the success thresholds
+    /// ([`super::right_pose_rank`]; absent: none did): why a failed pair failed.
+    pub right_rank: Option<usize>,
     /// The pipeline's confidence in [0, 1] and its ambiguity flag.
     pub confidence: f64,
     pub ambiguous: bool,
@@ -86,6 +89,7 @@ pub const COLUMNS: [&str; N] = [
     "degenerate",
     "chosen_rank",
     "verified",
+    "right_rank",
     "confidence",
     "ambiguous",
     "verify_score",
@@ -100,7 +104,7 @@ pub const COLUMNS: [&str; N] = [
 ];
 
 /// The number of columns.
-const N: usize = 33;
+const N: usize = 34;
 
 impl PairRow {
     /// An empty row for a pair (errors NaN until measured).
@@ -128,6 +132,7 @@ impl PairRow {
             degenerate: None,
             chosen_rank: None,
             verified: None,
+            right_rank: None,
             confidence: f64::NAN,
             ambiguous: false,
             verify_score: None,
@@ -170,6 +175,7 @@ impl PairRow {
             opt(&self.degenerate),
             opt(&self.chosen_rank),
             opt(&self.verified),
+            opt(&self.right_rank),
             self.confidence.to_string(),
             self.ambiguous.to_string(),
             opt(&self.verify_score),
@@ -214,7 +220,7 @@ impl PairRow {
                 p(f, k).map(Some)
             }
         }
-        const TRANSFORM: usize = 26;
+        const TRANSFORM: usize = 27;
         let transform = if f[TRANSFORM].is_empty() {
             Vec::new()
         } else {
@@ -247,17 +253,18 @@ impl PairRow {
             degenerate: o(&f, 19)?,
             chosen_rank: o(&f, 20)?,
             verified: o(&f, 21)?,
-            confidence: p(&f, 22)?,
-            ambiguous: p(&f, 23)?,
-            verify_score: o(&f, 24)?,
-            runner_up_score: o(&f, 25)?,
+            right_rank: o(&f, 22)?,
+            confidence: p(&f, 23)?,
+            ambiguous: p(&f, 24)?,
+            verify_score: o(&f, 25)?,
+            runner_up_score: o(&f, 26)?,
             transform,
-            read_ms: p(&f, 27)?,
-            coarse_ms: p(&f, 28)?,
-            verify_ms: p(&f, 29)?,
-            refine_ms: p(&f, 30)?,
-            total_ms: p(&f, 31)?,
-            error: o(&f, 32)?,
+            read_ms: p(&f, 28)?,
+            coarse_ms: p(&f, 29)?,
+            verify_ms: p(&f, 30)?,
+            refine_ms: p(&f, 31)?,
+            total_ms: p(&f, 32)?,
+            error: o(&f, 33)?,
         })
     }
 }
