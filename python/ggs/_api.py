@@ -88,7 +88,40 @@ class Result:
     every field as plain Python and numpy values."""
 
     def __init__(self, fields: Dict[str, Any]) -> None:
+        self._report = fields.pop("_report", None)
         self._fields = fields
+
+    def __getstate__(self) -> Dict[str, Any]:
+        # The report's display samples stay behind: an unpickled Result has no report.
+        return {"_fields": self._fields}
+
+    def __setstate__(self, state: Dict[str, Any]) -> None:
+        self._fields = state["_fields"]
+        self._report = None
+
+    def report_html(
+        self,
+        path: StrPath,
+        *,
+        source_name: str = "source",
+        target_name: str = "target",
+        command: Optional[str] = None,
+    ) -> None:
+        """Write the registration report, one self-contained HTML file: the target and the
+        source before and after in three views, a 3-D view, the hypotheses and their
+        verification, the quality report with its definitions, the time of each stage, and
+        ``command`` (shown as the line that reproduces it). The same page as
+        ``ggs register --report``. Written atomically.
+
+        Only a Result of :func:`register` in this process has one (it keeps at most 200 000
+        points of each cloud for the pictures); ValueError otherwise.
+        """
+        if self._report is None:
+            raise ValueError(
+                "this Result has no report: only ggs.register results have one, and it is "
+                "not pickled"
+            )
+        self._report.write(os.fspath(path), source_name, target_name, command)
 
     @property
     def transformation(self) -> Matrix4:
@@ -366,6 +399,35 @@ PairLike = Tuple[Union[PointsLike, StrPath], Union[PointsLike, StrPath]]
 
 def _load(x: Union[PointsLike, StrPath]) -> PointsLike:
     return read_point_cloud(x) if isinstance(x, (str, os.PathLike)) else x
+
+
+ViewName = Literal["plan", "front", "side"]
+
+
+def render(
+    target: PointsLike,
+    source: Optional[PointsLike] = None,
+    transformation: Optional[npt.ArrayLike] = None,
+    *,
+    view: ViewName = "plan",
+    size: Tuple[int, int] = (640, 480),
+) -> npt.NDArray[np.uint8]:
+    """A picture of ``target`` (blue) and ``source`` (orange, moved by ``transformation``
+    when given) as an (height, width, 3) uint8 array, for notebooks (``plt.imshow``).
+
+    An orthographic view along the target's principal axes (``"plan"``: the two largest,
+    ``"front"``, ``"side"``), nearer points brighter, framed on the points shown; at most
+    200 000 points per cloud are drawn (evenly strided). The pictures of
+    :meth:`Result.report_html` are made the same way.
+    """
+    width, height = size
+    layers = [(as_points(target, "target"), (40, 110, 230))]
+    if source is not None:
+        pts = as_points(source, "source")
+        if transformation is not None:
+            pts = transform_points(pts, transformation)
+        layers.append((pts, (245, 130, 20)))
+    return _ggs.render_view(layers, view, int(width), int(height))
 
 
 def register_many(

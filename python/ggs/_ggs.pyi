@@ -1,6 +1,6 @@
 """Type stubs of the native engine (the public API is ``ggs``, in ``ggs/_api.py``)."""
 
-from typing import Any, Callable, Dict, List, Optional
+from typing import Any, Callable, Dict, List, Optional, Tuple, final
 
 import numpy as np
 import numpy.typing as npt
@@ -8,12 +8,14 @@ import numpy.typing as npt
 __all__ = [
     "PRESETS",
     "ROTATION_SETS",
+    "Report",
     "__version__",
     "estimate_normals",
     "evaluate",
     "read_point_cloud",
     "refine",
     "register",
+    "render_view",
     "rotation_set",
     "rre",
     "rte",
@@ -64,3 +66,20 @@ def evaluate(
 ) -> Dict[str, Any]: ...
 def rre(estimate: npt.NDArray[np.float64], truth: npt.NDArray[np.float64]) -> float: ...
 def rte(estimate: npt.NDArray[np.float64], truth: npt.NDArray[np.float64]) -> float: ...
+def render_view(
+    layers: List[Tuple[npt.NDArray[Any], Tuple[int, int, int]]],
+    view: str,
+    width: int,
+    height: int,
+) -> npt.NDArray[np.uint8]: ...
+
+@final
+class Report:
+    def html(self) -> str: ...
+    def write(
+        self,
+        path: str,
+        source_name: Optional[str] = None,
+        target_name: Optional[str] = None,
+        command: Optional[str] = None,
+    ) -> None: ...

@@ -7,6 +7,7 @@
 //! through the search's cancel flag and raises `KeyboardInterrupt`) and to report progress.
 
 mod arrays;
+mod report;
 mod result;
 
 use arrays::{matrix_of, points_array, points_of, rotations_of, to_py_err, value_err};
@@ -294,13 +295,17 @@ fn register<'py>(
     })?
     .map_err(to_py_err)?;
     let total_ms = t0.elapsed().as_secs_f64() * 1e3;
-    result_dict(
+    let d = result_dict(
         py,
         &reg.transform,
         Some(&reg),
         reg.refine.as_ref(),
         total_ms,
-    )
+    )?;
+    let mut inner = ggs::html::registration::RegistrationReport::new(&source, &target, reg);
+    inner.total_ms = Some(total_ms);
+    d.set_item("_report", report::Report { inner })?;
+    Ok(d)
 }
 
 /// Refine `init` by ICP; returns the result as a dict.
@@ -505,6 +510,8 @@ fn _ggs(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(evaluate, m)?)?;
     m.add_function(wrap_pyfunction!(rre, m)?)?;
     m.add_function(wrap_pyfunction!(rte, m)?)?;
+    m.add_function(wrap_pyfunction!(report::render_view, m)?)?;
+    m.add_class::<report::Report>()?;
     m.add("ROTATION_SETS", ggs::rotations::NAMES.to_vec())?;
     m.add("PRESETS", Preset::NAMES.to_vec())?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;

@@ -2,6 +2,7 @@
 
 import json
 import os
+import pickle
 import subprocess
 import threading
 import time
@@ -425,3 +426,43 @@ def test_a_scan_moved_by_random_rotations_is_solved_with_no_option():
         r = ggs.register(source, target)
         assert ggs.metrics.rre(r.transformation, t) < 0.1 and ggs.metrics.rte(r.transformation, t) < 1e-3
         assert not r.ambiguous
+
+
+def test_report_html_is_the_cli_page_and_needs_a_register_result(tmp_path):
+    source, target = bunny_small()
+    r = ggs.register(source, target, voxel=0.006)
+    out = tmp_path / "report.html"
+    r.report_html(out, source_name="bun045", target_name="bun000", command="python demo.py")
+    html = out.read_text()
+    assert html.startswith("<!DOCTYPE html>") and html.rstrip().endswith("</html>")
+    for section in ("Before and after", "3-D view", "Hypotheses", "Quality", "Time per stage"):
+        assert section in html
+    assert "bun045" in html and "python demo.py" in html
+    assert html.count("data:image/png;base64,") == 6  # 2 × 3 views, inline
+    assert "http://" not in html.replace("http://www.w3.org/2000/svg", "")
+    back = pickle.loads(pickle.dumps(r))
+    with pytest.raises(ValueError, match="no report"):
+        back.report_html(tmp_path / "x.html")
+    refined = ggs.refine(source, target, r.transformation)
+    with pytest.raises(ValueError, match="no report"):
+        refined.report_html(tmp_path / "y.html")
+    assert not (tmp_path / "x.html").exists() and not (tmp_path / "y.html").exists()
+
+
+def test_render_returns_an_image_that_shows_the_alignment():
+    source, target = bunny_small()
+    r = ggs.register(source, target, voxel=0.006)
+    img = ggs.render(target, source, r.transformation, view="front", size=(320, 200))
+    assert img.shape == (200, 320, 3) and img.dtype == np.uint8
+    painted = (img.min(axis=2) < 225).mean()
+    assert 0.05 < painted < 0.9
+    rgb = img.astype(int)
+    orange = (rgb[:, :, 0] > rgb[:, :, 2] + 60).sum()
+    assert orange > 100, "the source is drawn"
+    alone = ggs.render(target, view="plan", size=(64, 64))
+    alone = alone.astype(int)
+    assert (alone[:, :, 0] > alone[:, :, 2] + 60).sum() == 0, "no source, no orange"
+    with pytest.raises(ValueError, match="view must be"):
+        ggs.render(target, view="top")  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match="size must be"):
+        ggs.render(target, size=(0, 10))
