@@ -116,3 +116,48 @@ fn bench_errors_come_before_any_work() {
     );
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn the_report_shows_every_pair_and_pictures_the_failed_one() {
+    let dir = tmp("report");
+    let m = manifest(&dir);
+    // A third pair whose "ground truth" is the identity: the right answer counts as a failure.
+    let mut text = std::fs::read_to_string(&m).unwrap();
+    let fwd = text.lines().nth(1).unwrap().to_string();
+    let mut wrong: Vec<&str> = fwd.split('\t').collect();
+    wrong[0] = "wrong/truth";
+    wrong[3] = "1 0 0 0 0 1 0 0 0 0 1 0 0 0 0 1";
+    text += &(wrong.join("\t") + "\n");
+    std::fs::write(&m, text).unwrap();
+    let out = dir.join("run");
+    let o = bench_manifest(&m, &out, &["--threads", "2", "-q"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let html = std::fs::read_to_string(out.join("report.html")).unwrap();
+    assert!(html.contains("2 of 3 pairs registered"), "summary banner");
+    assert!(html.contains("Failed pairs (1)") && html.contains("<b>wrong/truth</b>"));
+    assert!(!html.contains("(no picture)") && !html.contains("In progress"));
+    assert_eq!(
+        html.matches("data:image/png;base64,").count(),
+        1,
+        "one failure picture"
+    );
+    assert_eq!(html.matches("<tr class=\"fail\">").count(), 1);
+    for id in ["fwd", "back"] {
+        assert!(
+            html.contains(&format!("<td class=\"l\">{id}</td>")),
+            "{id} in the table"
+        );
+    }
+    let pictures: Vec<_> = std::fs::read_dir(out.join("gallery")).unwrap().collect();
+    assert_eq!(pictures.len(), 1, "one picture in gallery/");
+    // The right pose's rank is recorded: no hypothesis matches an identity "truth".
+    let csv = std::fs::read_to_string(out.join("pairs.csv")).unwrap();
+    let header: Vec<&str> = csv.lines().next().unwrap().split(',').collect();
+    let col = header.iter().position(|c| *c == "right_rank").unwrap();
+    let fwd_row: Vec<&str> = csv.lines().nth(1).unwrap().split(',').collect();
+    assert_eq!(
+        fwd_row[col], "0",
+        "the coarse winner is right on the bundled pair"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}

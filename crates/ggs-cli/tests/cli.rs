@@ -550,3 +550,43 @@ fn every_simd_body_gives_the_same_bits() {
         }
     }
 }
+
+#[test]
+fn report_is_one_self_contained_page_written_atomically() {
+    let d = tmp("report");
+    let path = d.join("report.html");
+    let o = register_pair(&["--report", s(&path), "--quiet"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let html = std::fs::read_to_string(&path).unwrap();
+    for section in [
+        "Before and after",
+        "3-D view",
+        "Hypotheses",
+        "Quality",
+        "Time per stage",
+    ] {
+        assert!(html.contains(section), "{section}");
+    }
+    assert_eq!(
+        html.matches("data:image/png;base64,").count(),
+        6,
+        "2 × 3 inline views"
+    );
+    assert!(
+        html.contains("ggs register") && html.contains("--report"),
+        "the command line"
+    );
+    let outside = html.replace("http://www.w3.org/2000/svg", "");
+    assert!(!outside.contains("http://") && !outside.contains("https://"));
+    assert!(
+        !outside.contains(" src=\"/") && !outside.contains("<link"),
+        "nothing to fetch"
+    );
+    // A report that cannot be written is an error, and leaves nothing behind.
+    let missing = d.join("no-such-dir").join("r.html");
+    let o = register_pair(&["--report", s(&missing), "--quiet"]);
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("no-such-dir"));
+    assert!(!d.join("no-such-dir").exists());
+    std::fs::remove_dir_all(&d).unwrap();
+}

@@ -357,4 +357,35 @@ mod tests {
         );
         assert!(!done.contains("refresh") && !done.contains("In progress"));
     }
+
+    #[test]
+    fn a_report_of_1724_pairs_stays_small() {
+        // FPv1's size; one pair in five failed (more than any method here).
+        let rows: Vec<PairRow> = (0..1724)
+            .map(|k| {
+                let mut r = row(&format!("tr_reg_{:03}/view_{k}", k / 20), k % 5 != 0);
+                r.rre = 0.05 + (k % 97) as f64 * 1.7;
+                r.chosen_rank = Some(k % 3);
+                r.right_rank = if k % 5 == 0 { None } else { Some(0) };
+                r
+            })
+            .collect();
+        let dir = std::env::temp_dir().join(format!("ggs-html-big-{}", std::process::id()));
+        let ctx = ReportContext {
+            protocol: "fpv1",
+            total_pairs: rows.len(),
+            metres: false,
+            out: &dir,
+        };
+        let html = report_html(&ctx, &rows);
+        assert_eq!(html.matches("<tr class=\"fail\">").count(), 345);
+        assert_eq!(
+            html.matches("<figure>").count(),
+            GALLERY_MAX,
+            "the gallery is capped"
+        );
+        assert!(html.contains("285 more failed pairs"));
+        // Without pictures; each inline picture adds 50–100 kB (docs/reports.md).
+        assert!(html.len() < 1_000_000, "{} bytes", html.len());
+    }
 }
