@@ -19,14 +19,15 @@ use std::fmt::Write;
 use std::path::{Path, PathBuf};
 
 /// Failed pairs shown inline in the gallery at most.
-pub const GALLERY_MAX: usize = 60;
+pub const GALLERY_MAX: usize = 48;
 /// Seconds between rewrites of the report while a run is in progress.
 pub const REWRITE_EVERY_S: f64 = 2.0;
 /// Pixels of one view in a gallery picture.
-const THUMB: (usize, usize) = (200, 160);
+const THUMB: (usize, usize) = (180, 140);
 
 /// The gallery picture of a pair: target and source in the target's three principal views,
-/// the source moved by the estimate (top row) and by the ground truth (bottom row).
+/// the source as given (top row), moved by the estimate (middle) and by the ground truth
+/// (bottom).
 pub fn failure_picture(
     source: &[Point],
     target: &[Point],
@@ -36,8 +37,8 @@ pub fn failure_picture(
     let source = render::display_sample(source, render::DISPLAY_POINTS / 4);
     let target = render::display_sample(target, render::DISPLAY_POINTS / 4);
     let views = render::principal_views(&target);
-    let mut cells = Vec::with_capacity(6);
-    for t in [estimate, truth] {
+    let mut cells = Vec::with_capacity(9);
+    for t in [&Rigid::identity(), estimate, truth] {
         let moved: Vec<Point> = source.iter().map(|p| t.apply(p)).collect();
         for view in &views {
             let layers = [
@@ -226,8 +227,8 @@ fn gallery_html(out: &Path, rows: &[PairRow]) -> String {
         return s + "<p>None.</p>";
     }
     s += &legend();
-    s += "<p class=\"sub\">Top row: the source moved by the estimate; bottom row: by the ground \
-          truth (the target's plan, front and side views). The right pose's rank is the coarse \
+    s += "<p class=\"sub\">Top row: the source as given; middle row: moved by the estimate; \
+          bottom row: moved by the ground truth (the target's plan, front and side views). The right pose's rank is the coarse \
           rank of the first hypothesis that meets the thresholds (absent: none did).</p>\
           <div class=\"gallery\">";
     for r in failed.iter().take(GALLERY_MAX) {
@@ -384,8 +385,35 @@ mod tests {
             GALLERY_MAX,
             "the gallery is capped"
         );
-        assert!(html.contains("285 more failed pairs"));
+        assert!(html.contains("297 more failed pairs"));
         // Without pictures; each inline picture adds 50–100 kB (docs/reports.md).
         assert!(html.len() < 1_000_000, "{} bytes", html.len());
+        // GGS_REPORT_SAMPLE=DIR: the same page with a picture for every failure, to measure
+        // its size and load time (docs/reports.md).
+        if let Some(sample) = std::env::var_os("GGS_REPORT_SAMPLE") {
+            let sample = Path::new(&sample);
+            let sphere: Vec<Point> = (0..40_000)
+                .map(|k| {
+                    let (t, p) = (
+                        k as f64 * 2.399963,
+                        (1.0 - 2.0 * (k as f64 + 0.5) / 4e4).acos(),
+                    );
+                    [p.sin() * t.cos(), p.sin() * t.sin() * 0.6, p.cos() * 1.4]
+                })
+                .collect();
+            let half: Vec<Point> = sphere.iter().filter(|p| p[0] > -0.2).copied().collect();
+            let turned = Rigid::new(
+                *nalgebra::Rotation3::from_euler_angles(0.0, 2.0, 0.5).matrix(),
+                nalgebra::Vector3::new(0.3, 0.0, 0.0),
+            );
+            let png = failure_picture(&half, &sphere, &turned, &Rigid::identity()).png();
+            for r in rows.iter().filter(|r| !r.success) {
+                let path = picture_path(sample, &r.id);
+                std::fs::create_dir_all(path.parent().unwrap()).unwrap();
+                std::fs::write(path, &png).unwrap();
+            }
+            let ctx = ReportContext { out: sample, ..ctx };
+            write_report(&ctx, &rows).unwrap();
+        }
     }
 }
