@@ -1,17 +1,24 @@
-//! `ggs bench PROTOCOL`: run a published benchmark protocol or a manifest of pairs.
+//! `ggs bench PROTOCOL`: run a published benchmark protocol or a manifest of pairs, or a
+//! share of one (`--shard I/N`); `ggs bench merge RUN_DIRS... --out DIR` joins the shards.
 
 use crate::pipeline_args::PipelineArgs;
 use anyhow::{bail, Context, Result};
 use clap::Args;
+use ggs::benchmark::shard::{write_shard_file, Shard, ShardFile};
 use ggs::benchmark::{self, missing_files, Protocol, RunConfig};
 use std::path::PathBuf;
 
 #[derive(Args)]
 pub struct BenchArgs {
-    /// 3dmatch, kitti, eth, fpv1, or manifest (then give the manifest file).
+    /// 3dmatch, kitti, eth, fpv1, manifest (then give the manifest file), or merge (then give
+    /// the shards' run directories and --out).
     pub protocol: String,
-    /// The manifest (`pairs.tsv` format) for `manifest`.
-    pub manifest: Option<PathBuf>,
+    /// The manifest (`pairs.tsv` format) for `manifest`; the run directories for `merge`.
+    pub inputs: Vec<PathBuf>,
+    /// Run only shard I of N: the selected pairs at positions k with k mod N = I, into their
+    /// own --out; `ggs bench merge` joins the N run directories.
+    #[arg(long, value_name = "I/N")]
+    pub shard: Option<String>,
     /// Directory with the protocol's point clouds (not for `manifest`).
     #[arg(long, value_name = "DIR")]
     pub data: Option<PathBuf>,
@@ -56,12 +63,18 @@ pub struct BenchArgs {
 }
 
 pub fn run(args: BenchArgs) -> Result<()> {
-    let protocol = Protocol::from_name(&args.protocol, args.manifest.as_deref())?;
+    if args.protocol == "merge" {
+        return merge(&args);
+    }
+    if args.inputs.len() > 1 {
+        bail!("only one manifest file may be given");
+    }
+    let protocol = Protocol::from_name(&args.protocol, args.inputs.first().map(|p| p.as_path()))?;
     if matches!(protocol, Protocol::Manifest(_)) {
         if args.data.is_some() {
             bail!("--data is not used with a manifest: its paths are relative to the manifest");
         }
-    } else if args.manifest.is_some() {
+    } else if !args.inputs.is_empty() {
         bail!("only 'manifest' takes a file argument; give the clouds' directory with --data");
     }
     let data = match (&protocol, &args.data) {
@@ -107,13 +120,29 @@ pub fn run(args: BenchArgs) -> Result<()> {
         .out
         .clone()
         .unwrap_or_else(|| PathBuf::from(format!("ggs-bench-{}", protocol.name())));
+    let metres = !matches!(protocol, Protocol::Manifest(_));
+    if let Some(text) = &args.shard {
+        let shard = Shard::parse(text)?;
+        let selected_pairs = pairs.len();
+        pairs = shard.select(&pairs);
+        let file = ShardFile {
+            shard,
+            selected_pairs,
+            metres,
+            ids: pairs.iter().map(|p| p.id.clone()).collect(),
+        };
+        write_shard_file(&out, &file)?;
+        if pairs.is_empty() {
+            bail!("shard {text} has no pair: {selected_pairs} pairs were selected");
+        }
+    }
     let pb = crate::progress::bar(pairs.len(), "pairs", args.quiet);
     let mut successes = 0;
     let outcome = benchmark::run(
         protocol.name(),
         &pairs,
         &cfg,
-        !matches!(protocol, Protocol::Manifest(_)),
+        metres,
         &out,
         |done, _, row| {
             successes += row.success as usize;
@@ -126,7 +155,6 @@ pub fn run(args: BenchArgs) -> Result<()> {
     if args.json {
         outln!("{}", serde_json::to_string_pretty(&outcome.summary)?);
     } else {
-        let metres = !matches!(protocol, Protocol::Manifest(_));
         out!("{}", outcome.summary.markdown(&outcome.rows, metres));
         outln!(
             "\n{} pairs ({} from an earlier run); results in {}",
@@ -144,6 +172,37 @@ pub fn run(args: BenchArgs) -> Result<()> {
                 outcome.summary.pairs
             );
         }
+    }
+    Ok(())
+}
+
+/// `ggs bench merge RUN_DIRS... --out DIR`.
+fn merge(args: &BenchArgs) -> Result<()> {
+    let Some(out) = &args.out else {
+        bail!("merge needs --out DIR for the merged run");
+    };
+    if args.inputs.is_empty() {
+        bail!("merge needs the shards' run directories");
+    }
+    if args.inputs.iter().any(|d| d == out) {
+        bail!("--out must be a new directory, not one of the shards");
+    }
+    let outcome = benchmark::shard::merge(&args.inputs, out)
+        .with_context(|| format!("merging into {}", out.display()))?;
+    if args.json {
+        outln!("{}", serde_json::to_string_pretty(&outcome.summary)?);
+    } else {
+        let metres = args.inputs.first().is_some_and(|d| {
+            std::fs::read_to_string(d.join("shard.json"))
+                .is_ok_and(|t| t.contains("\"metres\": true"))
+        });
+        out!("{}", outcome.summary.markdown(&outcome.rows, metres));
+        outln!(
+            "\n{} pairs merged from {} shards; results in {}",
+            outcome.rows.len(),
+            args.inputs.len(),
+            out.display()
+        );
     }
     Ok(())
 }

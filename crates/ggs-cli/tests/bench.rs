@@ -161,3 +161,86 @@ fn the_report_shows_every_pair_and_pictures_the_failed_one() {
     );
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// pairs.csv without its `*_ms` columns.
+fn rows_without_times(path: &Path) -> Vec<Vec<String>> {
+    let text = std::fs::read_to_string(path).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let keep: Vec<usize> = (0..header.len())
+        .filter(|&k| !header[k].ends_with("_ms"))
+        .collect();
+    std::iter::once(header.iter().map(|s| s.to_string()).collect())
+        .chain(lines.map(|l| {
+            let f: Vec<&str> = l.split(',').collect();
+            keep.iter().map(|&k| f[k].to_string()).collect()
+        }))
+        .collect()
+}
+
+#[test]
+fn shards_merge_into_the_single_run_and_refuse_what_does_not_fit() {
+    let dir = tmp("shards");
+    let m = manifest(&dir);
+    let mut text = std::fs::read_to_string(&m).unwrap();
+    let fwd = text.lines().nth(1).unwrap().replacen("fwd", "fwd-again", 1);
+    text += &(fwd + "\n");
+    std::fs::write(&m, text).unwrap();
+    let run = |out: &Path, extra: &[&str]| {
+        let o = bench_manifest(&m, out, &[&["-q", "--threads", "1"], extra].concat());
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    };
+    run(&dir.join("all"), &[]);
+    run(&dir.join("s0"), &["--shard", "0/2"]);
+    run(&dir.join("s1"), &["--shard", "1/2"]);
+    let shards = [dir.join("s1"), dir.join("s0")]; // any order
+    let merged = dir.join("merged");
+    let merge = |dirs: &[PathBuf], out: &Path| {
+        let mut args = vec!["bench", "merge"];
+        args.extend(dirs.iter().map(|d| s(d)));
+        args.extend(["--out", s(out)]);
+        ggs(&args)
+    };
+    let o = merge(&shards, &merged);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(
+        rows_without_times(&merged.join("pairs.csv")),
+        rows_without_times(&dir.join("all").join("pairs.csv"))
+    );
+    for f in [
+        "results.json",
+        "summary.md",
+        "recall.svg",
+        "report.html",
+        "run.json",
+    ] {
+        assert!(merged.join(f).is_file(), "{f}");
+    }
+    // A missing shard, a shard given twice, an unfinished shard: refused, named.
+    let o = merge(&shards[..1], &dir.join("m2"));
+    assert!(
+        !o.status.success() && String::from_utf8_lossy(&o.stderr).contains("shard 0/2 is missing")
+    );
+    let o = merge(&[shards[0].clone(), shards[0].clone()], &dir.join("m3"));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("given twice"));
+    let csv = shards[0].join("pairs.csv");
+    let text = std::fs::read_to_string(&csv).unwrap();
+    let cut = text.trim_end().rfind('\n').unwrap();
+    std::fs::write(&csv, &text[..=cut]).unwrap();
+    let o = merge(&shards, &dir.join("m4"));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("shard 1/2 is not finished") && err.contains("resume"),
+        "{err}"
+    );
+    // Resuming the shard finishes it, and the merge then succeeds.
+    run(&shards[0], &["--shard", "1/2"]);
+    assert!(merge(&shards, &dir.join("m5")).status.success());
+    // A run directory of another shard is not reused.
+    let o = bench_manifest(&m, &shards[0], &["-q", "--shard", "0/2"]);
+    assert!(String::from_utf8_lossy(&o.stderr).contains("another shard"));
+    assert!(!bench_manifest(&m, &dir.join("x"), &["--shard", "2/2"])
+        .status
+        .success());
+    std::fs::remove_dir_all(&dir).unwrap();
+}

@@ -4,13 +4,15 @@
 //! - [`protocol`]: pair lists, ground truth and default parameters of each protocol;
 //! - [`row`]: one pair's result ([`PairRow`]) and the resumable CSV file;
 //! - [`report`]: recall, mean errors, the Markdown table and the recall curves (SVG);
-//! - [`html`]: `report.html`, the page with charts, every pair and a gallery of failures.
+//! - [`html`]: `report.html`, the page with charts, every pair and a gallery of failures;
+//! - [`shard`]: a deterministic share of the pairs per run directory, and the merge of shards.
 
 pub mod html;
 pub mod motion;
 pub mod protocol;
 pub mod report;
 pub mod row;
+pub mod shard;
 
 use crate::cloud::Cloud;
 use crate::error::{GgsError, Result};
@@ -320,6 +322,8 @@ pub struct RunOutcome {
     pub summary: report::Summary,
     /// Pairs taken from an earlier run's CSV instead of being run again.
     pub resumed: usize,
+    /// Distances in metres (the summary's RTE in cm).
+    pub metres: bool,
 }
 
 /// Run `pairs` into `out` (created if needed): `run.json` (the configuration), `pairs.csv`
@@ -373,20 +377,39 @@ pub fn run(
             last_report = Some(Instant::now());
         }
     }
-    let summary = report::Summary::of(name, &rows);
-    let json = serde_json::json!({ "summary": &summary, "pairs": &rows });
+    let summary = finish_run(name, &rows, metres, out)?;
+    Ok(RunOutcome {
+        rows,
+        summary,
+        resumed,
+        metres,
+    })
+}
+
+/// Write the files of a finished run from its rows: `results.json` (summary and rows),
+/// `summary.md`, `recall.svg` and `report.html`, each atomically.
+pub(crate) fn finish_run(
+    name: &str,
+    rows: &[PairRow],
+    metres: bool,
+    out: &Path,
+) -> Result<report::Summary> {
+    let summary = report::Summary::of(name, rows);
+    let json = serde_json::json!({ "summary": &summary, "pairs": rows });
     let write =
         |file: &str, text: String| crate::io::write_atomic(&out.join(file), text.as_bytes());
     write(
         "results.json",
         serde_json::to_string_pretty(&json).expect("rows serialize") + "\n",
     )?;
-    write("summary.md", summary.markdown(&rows, metres))?;
-    write("recall.svg", report::recall_curves_svg(name, &rows))?;
-    html::write_report(&ctx, &rows)?;
-    Ok(RunOutcome {
-        rows,
-        summary,
-        resumed,
-    })
+    write("summary.md", summary.markdown(rows, metres))?;
+    write("recall.svg", report::recall_curves_svg(name, rows))?;
+    let ctx = html::ReportContext {
+        protocol: name,
+        total_pairs: rows.len(),
+        metres,
+        out,
+    };
+    html::write_report(&ctx, rows)?;
+    Ok(summary)
 }

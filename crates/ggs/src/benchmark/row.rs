@@ -307,6 +307,27 @@ fn split_csv(line: &str) -> std::result::Result<Vec<String>, String> {
     Ok(out)
 }
 
+/// The rows of a results file's complete lines, and those lines (a torn last line dropped).
+fn parse<'a>(path: &Path, text: &'a str) -> Result<(Vec<PairRow>, &'a str)> {
+    let complete = match text.rfind('\n') {
+        Some(end) => &text[..=end],
+        None => "",
+    };
+    let mut lines = complete.lines();
+    if lines.next() != Some(header().as_str()) {
+        return Err(GgsError::at_line(
+            path,
+            1,
+            "not a ggs results file of this version (header differs): choose another --out",
+        ));
+    }
+    let mut rows = Vec::new();
+    for (k, line) in lines.enumerate() {
+        rows.push(PairRow::from_csv(line).map_err(|m| GgsError::at_line(path, k + 2, m))?);
+    }
+    Ok((rows, complete))
+}
+
 /// The per-pair CSV of a run, open for appending.
 pub struct ResultsCsv {
     path: PathBuf,
@@ -318,35 +339,20 @@ impl ResultsCsv {
     /// lines are returned (a torn last line, from a crash mid-write, is dropped from the
     /// file). A file that is not a ggs results CSV is an error, never overwritten.
     pub fn open(path: &Path) -> Result<(ResultsCsv, Vec<PairRow>)> {
-        let mut rows = Vec::new();
-        match std::fs::read_to_string(path) {
+        let rows = match std::fs::read_to_string(path) {
             Ok(text) => {
-                let complete = match text.rfind('\n') {
-                    Some(end) => &text[..=end],
-                    None => "",
-                };
-                let mut lines = complete.lines();
-                if lines.next() != Some(header().as_str()) {
-                    return Err(GgsError::at_line(
-                        path,
-                        1,
-                        "not a ggs results file (header differs): choose another --out",
-                    ));
-                }
-                for (k, line) in lines.enumerate() {
-                    let row =
-                        PairRow::from_csv(line).map_err(|m| GgsError::at_line(path, k + 2, m))?;
-                    rows.push(row);
-                }
+                let (rows, complete) = parse(path, &text)?;
                 if complete.len() != text.len() {
                     crate::io::write_atomic(path, complete.as_bytes())?;
                 }
+                rows
             }
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
                 crate::io::write_atomic(path, format!("{}\n", header()).as_bytes())?;
+                Vec::new()
             }
             Err(e) => return Err(GgsError::io(path, e)),
-        }
+        };
         let file = OpenOptions::new()
             .append(true)
             .open(path)
@@ -358,6 +364,12 @@ impl ResultsCsv {
             },
             rows,
         ))
+    }
+
+    /// The rows of the complete lines of `path`, which is left as it is.
+    pub fn read(path: &Path) -> Result<Vec<PairRow>> {
+        let text = std::fs::read_to_string(path).map_err(|e| GgsError::io(path, e))?;
+        Ok(parse(path, &text)?.0)
     }
 
     /// Append one row and flush it to disk.
