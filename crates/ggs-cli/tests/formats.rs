@@ -127,7 +127,18 @@ fn info_reports_format_points_and_speed() {
     assert_eq!(v[0]["scans"][0]["records"], 397);
     assert_eq!(v[1]["format"], "ply");
     assert_eq!(v[1]["points"], 40256);
-    assert!(v[1]["read_mb_per_s"].as_f64().unwrap() > 0.0);
+    // The speed is what its definition says (no wall-clock bound): file bytes / 1e6 / read_s.
+    let bytes = std::fs::metadata(data("bun000.ply")).unwrap().len();
+    assert_eq!(v[1]["bytes"].as_u64(), Some(bytes));
+    let (mb_s, secs) = (
+        v[1]["read_mb_per_s"].as_f64().unwrap(),
+        v[1]["read_s"].as_f64().unwrap(),
+    );
+    let expected = bytes as f64 / 1e6 / secs.max(1e-9);
+    assert!(
+        (mb_s - expected).abs() <= 1e-9 * expected,
+        "{mb_s} vs {expected}"
+    );
     let text = ok(&["info", s(&data("bun000.ply"))]);
     assert!(
         text.contains("points    40256") && text.contains("MB/s"),
