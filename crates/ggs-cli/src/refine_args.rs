@@ -91,11 +91,7 @@ pub fn print_report(r: &RefineResult) -> Result<()> {
         "refine      {}: {} iterations, {} ({}), {:.0} ms",
         r.method.name(),
         q.iterations,
-        if q.converged {
-            "converged"
-        } else {
-            "not converged"
-        },
+        q.convergence(),
         q.stop_reason,
         r.total_ms
     );

@@ -178,19 +178,31 @@ impl RunConfig {
 /// `out/run.json`: written on a new run; on a resumed one it must equal `fingerprint`, or
 /// the earlier rows would be mixed with rows of another configuration.
 fn check_run_config(out: &Path, fingerprint: &serde_json::Value, resuming: bool) -> Result<()> {
-    let path = out.join("run.json");
-    let text = serde_json::to_string_pretty(fingerprint).expect("serializable") + "\n";
-    match std::fs::read_to_string(&path) {
-        Ok(earlier) if earlier == text => Ok(()),
-        Ok(_) => Err(GgsError::in_file(
-            &path,
-            "this run directory holds results of another configuration (voxel, rotation set, search, verification, refinement, thresholds or motion seed differ); choose another --out, or delete the directory to start again",
-        )),
-        Err(_) if resuming => Err(GgsError::in_file(
-            &path,
+    pin_json(
+        &out.join("run.json"),
+        fingerprint,
+        "this run directory holds results of another configuration (voxel, rotation set, search, verification, refinement, thresholds or motion seed differ); choose another --out, or delete the directory to start again",
+        resuming.then_some(
             "missing: the earlier rows of this run directory cannot be checked against this configuration; choose another --out",
-        )),
-        Err(_) => crate::io::write_atomic(&path, text.as_bytes()),
+        ),
+    )
+}
+
+/// Write `value` as pretty JSON to `path` (atomically) if there is no file, or require the
+/// file there to hold exactly that text: `differ` is the error otherwise, and `missing`, when
+/// given, the error for an absent file (a resumed run whose record is gone).
+pub(crate) fn pin_json(
+    path: &Path,
+    value: &impl serde::Serialize,
+    differ: &str,
+    missing: Option<&str>,
+) -> Result<()> {
+    let text = serde_json::to_string_pretty(value).expect("serializable") + "\n";
+    match (std::fs::read_to_string(path), missing) {
+        (Ok(earlier), _) if earlier == text => Ok(()),
+        (Ok(_), _) => Err(GgsError::in_file(path, differ)),
+        (Err(_), Some(why)) => Err(GgsError::in_file(path, why)),
+        (Err(_), None) => crate::io::write_atomic(path, text.as_bytes()),
     }
 }
 

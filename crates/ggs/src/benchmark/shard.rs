@@ -67,16 +67,12 @@ pub struct ShardFile {
 /// Write `out/shard.json`, or check that the one there (a resumed shard) is the same.
 pub fn write_shard_file(out: &Path, file: &ShardFile) -> Result<()> {
     std::fs::create_dir_all(out).map_err(|e| GgsError::io(out, e))?;
-    let path = out.join("shard.json");
-    let text = serde_json::to_string_pretty(file).expect("serializable") + "\n";
-    match std::fs::read_to_string(&path) {
-        Ok(earlier) if earlier == text => Ok(()),
-        Ok(_) => Err(GgsError::in_file(
-            &path,
-            "this run directory holds another shard or another selection of pairs; choose another --out",
-        )),
-        Err(_) => crate::io::write_atomic(&path, text.as_bytes()),
-    }
+    super::pin_json(
+        &out.join("shard.json"),
+        file,
+        "this run directory holds another shard or another selection of pairs; choose another --out",
+        None,
+    )
 }
 
 fn read_text(path: &Path) -> Result<String> {

@@ -78,8 +78,9 @@ impl RegistrationReport {
             self.target_points
         );
         body += &verdict_html(reg);
-        body += &self.views_html();
-        body += &viewer_html(&self.target, &self.source, &reg.transform);
+        let views = render::principal_views(&self.target);
+        body += &self.views_html(&views);
+        body += &viewer_html(&self.target, &self.source, &reg.transform, &views[1]);
         body += &hypotheses_html(reg);
         body += &quality_html(reg);
         body += &search_html(reg);
@@ -90,8 +91,7 @@ impl RegistrationReport {
     }
 
     /// Before and after, three views each, framed on the target's principal axes.
-    fn views_html(&self) -> String {
-        let views = render::principal_views(&self.target);
+    fn views_html(&self, views: &[View; 3]) -> String {
         let moved: Vec<Point> = self
             .source
             .iter()
@@ -104,7 +104,7 @@ impl RegistrationReport {
             ("After: the source moved by T", &moved),
         ] {
             let _ = write!(s, "<h3>{title}</h3><div class=\"views\">");
-            for view in &views {
+            for view in views {
                 let img = view_image(&self.target, source, view);
                 let _ = write!(
                     s,
@@ -266,11 +266,7 @@ fn quality_html(reg: &Registration) -> String {
         "<p class=\"sub\">{} after {} iteration(s), {} ({}).</p>",
         r.method.name(),
         q.iterations,
-        if q.converged {
-            "converged"
-        } else {
-            "not converged"
-        },
+        q.convergence(),
         escape(&q.stop_reason)
     );
     let d = super::trim_number(q.correspondence_distance);
@@ -409,12 +405,11 @@ fn command_html(command: Option<&str>) -> String {
 }
 
 /// The 3-D view: target, source before and source after `T`, quantized to 16 bits in the
-/// target's "front" frame (so the view opens as the "front" picture, slightly turned).
-fn viewer_html(target: &[Point], source: &[Point], t: &Rigid) -> String {
+/// `front` view's frame (so it opens as the "front" picture, slightly turned).
+fn viewer_html(target: &[Point], source: &[Point], t: &Rigid, front: &View) -> String {
     let target = render::display_sample(target, VIEWER_POINTS);
     let before = render::display_sample(source, VIEWER_POINTS);
     let after: Vec<Point> = before.iter().map(|p| t.apply(p)).collect();
-    let front = render::principal_views(&target)[1];
     let axes = [front.right, front.up, front.toward_viewer()];
     let frame = |p: &Point| {
         let v = nalgebra::Vector3::new(p[0], p[1], p[2]);

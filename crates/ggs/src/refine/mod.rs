@@ -204,6 +204,17 @@ pub struct QualityReport {
     pub degenerate: bool,
 }
 
+impl QualityReport {
+    /// "converged" or "not converged", as the reports print it.
+    pub fn convergence(&self) -> &'static str {
+        if self.converged {
+            "converged"
+        } else {
+            "not converged"
+        }
+    }
+}
+
 /// Result of a refinement.
 #[derive(Debug, Clone, serde::Serialize)]
 pub struct RefineResult {

@@ -298,28 +298,15 @@ mod tests {
     #[test]
     fn the_nearer_cloud_hides_the_farther_one_whatever_the_layer_order() {
         let (near, far) = (square(40, 1.0), square(40, 0.0));
-        for layers in [
-            [
-                Layer {
-                    points: &near,
-                    color: [255, 0, 0],
-                },
-                Layer {
-                    points: &far,
-                    color: [0, 0, 255],
-                },
-            ],
-            [
-                Layer {
-                    points: &far,
-                    color: [0, 0, 255],
-                },
-                Layer {
-                    points: &near,
-                    color: [255, 0, 0],
-                },
-            ],
-        ] {
+        let red = Layer {
+            points: &near,
+            color: [255, 0, 0],
+        };
+        let blue = Layer {
+            points: &far,
+            color: [0, 0, 255],
+        };
+        for layers in [[red, blue], [blue, red]] {
             let img = render(&layers, &TOP, 64, 64);
             assert_eq!(
                 pixel(&img, 32, 32),
