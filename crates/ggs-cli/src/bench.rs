@@ -4,8 +4,8 @@
 use crate::pipeline_args::PipelineArgs;
 use anyhow::{bail, Context, Result};
 use clap::Args;
-use ggs::benchmark::shard::{write_shard_file, Shard, ShardFile};
-use ggs::benchmark::{self, missing_files, Protocol, RunConfig};
+use ggs::benchmark::shard::Shard;
+use ggs::benchmark::{self, Plan, Selection};
 use std::path::PathBuf;
 
 #[derive(Args)]
@@ -69,93 +69,38 @@ pub fn run(args: BenchArgs) -> Result<()> {
     if args.inputs.len() > 1 {
         bail!("only one manifest file may be given");
     }
-    let protocol = Protocol::from_name(&args.protocol, args.inputs.first().map(|p| p.as_path()))?;
-    if matches!(protocol, Protocol::Manifest(_)) {
-        if args.data.is_some() {
-            bail!("--data is not used with a manifest: its paths are relative to the manifest");
-        }
-    } else if !args.inputs.is_empty() {
+    if args.protocol != "manifest" && !args.inputs.is_empty() {
         bail!("only 'manifest' takes a file argument; give the clouds' directory with --data");
     }
-    let data = match (&protocol, &args.data) {
-        (Protocol::Manifest(_), _) => PathBuf::new(),
-        (_, Some(d)) if d.is_dir() => d.clone(),
-        (_, Some(d)) => bail!("--data {}: not a directory", d.display()),
-        (p, None) => bail!("{} needs --data DIR with its point clouds", p.name()),
-    };
-    let defaults = protocol.defaults();
-    let mut pairs = protocol.pairs(&data)?;
-    if let Some(filter) = &args.pairs {
-        let keys: Vec<&str> = filter.split(',').filter(|k| !k.is_empty()).collect();
-        pairs.retain(|p| keys.iter().any(|k| p.id.contains(k)));
-    }
-    if let Some(n) = args.limit {
-        pairs.truncate(n);
-    }
-    if pairs.is_empty() {
-        bail!("no pair selected (check --pairs and --limit)");
-    }
-    let (count, first) = missing_files(&pairs, 5);
-    if count > 0 {
-        let list: Vec<String> = first.iter().map(|p| format!("  {}", p.display())).collect();
-        bail!(
-            "{count} file(s) the {} pairs need are missing; the first:\n{}",
-            protocol.name(),
-            list.join("\n")
-        );
-    }
-    let mut pipeline = args.pipeline.config(args.threads)?;
-    if args.pipeline.preset == "paper" && args.pipeline.rotations.is_none() {
-        pipeline.rotations = ggs::rotations::RotationSet::named(defaults.paper_rotations)?;
-    }
-    let cfg = RunConfig {
+    let selection = Selection {
+        protocol: args.protocol.clone(),
+        manifest: args.inputs.first().cloned(),
+        data: args.data.clone(),
+        pairs: args.pairs.clone(),
+        limit: args.limit,
+        shard: args.shard.as_deref().map(Shard::parse).transpose()?,
         voxel: args.voxel,
-        pipeline,
-        max_rre_deg: args.max_rre.unwrap_or(defaults.max_rre_deg),
-        max_rte: args.max_rte.or(defaults.max_rte),
-        default_voxel: defaults.voxel,
-        motion_seed: args.move_seed,
+        move_seed: args.move_seed,
+        max_rre_deg: args.max_rre,
+        max_rte: args.max_rte,
     };
-    let out = args
-        .out
-        .clone()
-        .unwrap_or_else(|| PathBuf::from(format!("ggs-bench-{}", protocol.name())));
-    let metres = !matches!(protocol, Protocol::Manifest(_));
-    if let Some(text) = &args.shard {
-        let shard = Shard::parse(text)?;
-        let selected_pairs = pairs.len();
-        pairs = shard.select(&pairs);
-        let file = ShardFile {
-            shard,
-            selected_pairs,
-            metres,
-            ids: pairs.iter().map(|p| p.id.clone()).collect(),
-        };
-        write_shard_file(&out, &file)?;
-        if pairs.is_empty() {
-            bail!("shard {text} has no pair: {selected_pairs} pairs were selected");
-        }
-    }
-    let pb = crate::progress::bar(pairs.len(), "pairs", args.quiet);
+    let pipeline = args.pipeline.config(args.threads)?;
+    let paper_rotations = args.pipeline.preset == "paper" && args.pipeline.rotations.is_none();
+    let plan = Plan::new(&selection, pipeline, paper_rotations)?;
+    let out = args.out.clone().unwrap_or_else(|| plan.default_out());
+    let pb = crate::progress::bar(plan.pairs.len(), "pairs", args.quiet);
     let mut successes = 0;
-    let outcome = benchmark::run(
-        protocol.name(),
-        &pairs,
-        &cfg,
-        metres,
-        &out,
-        |done, _, row| {
-            successes += row.success as usize;
-            pb.set_position(done as u64);
-            pb.set_message(format!("{successes}/{done} solved, last {}", row.id));
-        },
-    )
+    let outcome = benchmark::run(&plan, &out, |done, _, row| {
+        successes += row.success as usize;
+        pb.set_position(done as u64);
+        pb.set_message(format!("{successes}/{done} solved, last {}", row.id));
+    })
     .with_context(|| format!("benchmark run in {}", out.display()))?;
     pb.finish_and_clear();
     if args.json {
         outln!("{}", serde_json::to_string_pretty(&outcome.summary)?);
     } else {
-        out!("{}", outcome.summary.markdown(&outcome.rows, metres));
+        out!("{}", outcome.summary.markdown(&outcome.rows, plan.metres));
         outln!(
             "\n{} pairs ({} from an earlier run); results in {}",
             outcome.rows.len(),

@@ -5,13 +5,17 @@
 //! - [`row`]: one pair's result ([`PairRow`]) and the resumable CSV file;
 //! - [`report`]: recall, mean errors, the Markdown table and the recall curves (SVG);
 //! - [`html`]: `report.html`, the page with charts, every pair and a gallery of failures;
+//! - [`plan`]: the pairs selected and how each is run, validated for every front end;
+//! - [`run_dir`]: the run directory, written as pairs finish in any order, and the serial run;
 //! - [`shard`]: a deterministic share of the pairs per run directory, and the merge of shards.
 
 pub mod html;
 pub mod motion;
+pub mod plan;
 pub mod protocol;
 pub mod report;
 pub mod row;
+pub mod run_dir;
 pub mod shard;
 
 use crate::cloud::Cloud;
@@ -20,8 +24,10 @@ use crate::metrics::{is_success, rre, rte};
 use crate::pipeline::{register, Registration, RegistrationConfig, VoxelSize};
 use crate::refine::RefineConfig;
 use crate::transform::Rigid;
+pub use plan::{Plan, Selection};
 pub use protocol::Protocol;
 pub use row::PairRow;
+pub use run_dir::{run, RunDir};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -175,19 +181,6 @@ impl RunConfig {
     }
 }
 
-/// `out/run.json`: written on a new run; on a resumed one it must equal `fingerprint`, or
-/// the earlier rows would be mixed with rows of another configuration.
-fn check_run_config(out: &Path, fingerprint: &serde_json::Value, resuming: bool) -> Result<()> {
-    pin_json(
-        &out.join("run.json"),
-        fingerprint,
-        "this run directory holds results of another configuration (voxel, rotation set, search, verification, refinement, thresholds or motion seed differ); choose another --out, or delete the directory to start again",
-        resuming.then_some(
-            "missing: the earlier rows of this run directory cannot be checked against this configuration; choose another --out",
-        ),
-    )
-}
-
 /// Write `value` as pretty JSON to `path` (atomically) if there is no file, or require the
 /// file there to hold exactly that text: `differ` is the error otherwise, and `missing`, when
 /// given, the error for an absent file (a resumed run whose record is gone).
@@ -210,6 +203,13 @@ pub(crate) fn pin_json(
 /// the row (a failed pair counts as unsuccessful), not returned.
 pub fn run_pair(pair: &BenchPair, cfg: &RunConfig) -> PairRow {
     run_pair_pictured(pair, cfg, false).0
+}
+
+/// [`run_pair`], and for a pair that failed with an estimate, its gallery picture as PNG
+/// bytes ([`html::failure_picture`]): what an executor returns to [`RunDir::record`].
+pub fn run_pair_with_picture(pair: &BenchPair, cfg: &RunConfig) -> (PairRow, Option<Vec<u8>>) {
+    let (row, image) = run_pair_pictured(pair, cfg, true);
+    (row, image.map(|i| i.png()))
 }
 
 /// [`run_pair`], and with `picture`, the gallery picture of a pair that failed with an
@@ -318,14 +318,6 @@ fn fill_row(row: &mut PairRow, reg: &Registration, truth: &Rigid) {
     row.right_rank = right_pose_rank(reg, truth, row.max_rre_deg, row.max_rte);
 }
 
-/// Write a gallery picture (creating `gallery/`), atomically.
-fn save_picture(path: &Path, image: &crate::render::Image) -> Result<()> {
-    if let Some(dir) = path.parent() {
-        std::fs::create_dir_all(dir).map_err(|e| GgsError::io(dir, e))?;
-    }
-    crate::io::write_atomic(path, &image.png())
-}
-
 /// What a finished run wrote and measured.
 #[derive(Debug, Clone)]
 pub struct RunOutcome {
@@ -336,92 +328,4 @@ pub struct RunOutcome {
     pub resumed: usize,
     /// Distances in metres (the summary's RTE in cm).
     pub metres: bool,
-}
-
-/// Run `pairs` into `out` (created if needed): `run.json` (the configuration), `pairs.csv`
-/// (one line per pair, appended as each finishes), then `results.json` (summary and rows),
-/// `summary.md`, `recall.svg` and `report.html` ([`html`]; also rewritten while the run is in
-/// progress), each written atomically, and a picture per failed pair in `gallery/`. Pairs already in `out/pairs.csv`
-/// are not run again; a directory whose `run.json` differs from this configuration is refused.
-/// `progress(done, total, row)` is called after every pair, resumed ones included.
-pub fn run(
-    name: &str,
-    pairs: &[BenchPair],
-    cfg: &RunConfig,
-    metres: bool,
-    out: &Path,
-    mut progress: impl FnMut(usize, usize, &PairRow),
-) -> Result<RunOutcome> {
-    std::fs::create_dir_all(out).map_err(|e| GgsError::io(out, e))?;
-    let (mut csv, earlier) = row::ResultsCsv::open(&out.join("pairs.csv"))?;
-    check_run_config(out, &cfg.fingerprint(name), !earlier.is_empty())?;
-    let mut done: std::collections::HashMap<String, PairRow> =
-        earlier.into_iter().map(|r| (r.id.clone(), r)).collect();
-    let mut rows = Vec::with_capacity(pairs.len());
-    let mut resumed = 0;
-    let ctx = html::ReportContext {
-        protocol: name,
-        total_pairs: pairs.len(),
-        metres,
-        out,
-    };
-    let mut last_report: Option<Instant> = None;
-    for (k, pair) in pairs.iter().enumerate() {
-        let row = match done.remove(&pair.id) {
-            Some(r) => {
-                resumed += 1;
-                r
-            }
-            None => {
-                let (r, picture) = run_pair_pictured(pair, cfg, true);
-                if let Some(image) = picture {
-                    save_picture(&html::picture_path(out, &r.id), &image)?;
-                }
-                csv.append(&r)?;
-                r
-            }
-        };
-        progress(k + 1, pairs.len(), &row);
-        rows.push(row);
-        let due = last_report.is_none_or(|t| t.elapsed().as_secs_f64() >= html::REWRITE_EVERY_S);
-        if due && rows.len() < pairs.len() {
-            html::write_report(&ctx, &rows)?;
-            last_report = Some(Instant::now());
-        }
-    }
-    let summary = finish_run(name, &rows, metres, out)?;
-    Ok(RunOutcome {
-        rows,
-        summary,
-        resumed,
-        metres,
-    })
-}
-
-/// Write the files of a finished run from its rows: `results.json` (summary and rows),
-/// `summary.md`, `recall.svg` and `report.html`, each atomically.
-pub(crate) fn finish_run(
-    name: &str,
-    rows: &[PairRow],
-    metres: bool,
-    out: &Path,
-) -> Result<report::Summary> {
-    let summary = report::Summary::of(name, rows);
-    let json = serde_json::json!({ "summary": &summary, "pairs": rows });
-    let write =
-        |file: &str, text: String| crate::io::write_atomic(&out.join(file), text.as_bytes());
-    write(
-        "results.json",
-        serde_json::to_string_pretty(&json).expect("rows serialize") + "\n",
-    )?;
-    write("summary.md", summary.markdown(rows, metres))?;
-    write("recall.svg", report::recall_curves_svg(name, rows))?;
-    let ctx = html::ReportContext {
-        protocol: name,
-        total_pairs: rows.len(),
-        metres,
-        out,
-    };
-    html::write_report(&ctx, rows)?;
-    Ok(summary)
 }

@@ -10,7 +10,8 @@
 //! configurations, missing or repeated shards and shards that are not finished.
 
 use super::row::{PairRow, ResultsCsv};
-use super::{finish_run, BenchPair, RunOutcome};
+use super::run_dir::finish_run;
+use super::{BenchPair, RunOutcome};
 use crate::error::{GgsError, Result};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
