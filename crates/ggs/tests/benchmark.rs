@@ -3,7 +3,7 @@
 mod common;
 
 use ggs::benchmark::protocol::{eth_selection, parse_gt_log, Protocol};
-use ggs::benchmark::{missing_files, run, BenchPair, CloudRef, RunConfig};
+use ggs::benchmark::{missing_files, run, BenchPair, CloudRef, Plan, RunConfig};
 use ggs::io::kitti::write_kitti_bin;
 use ggs::pipeline::RegistrationConfig;
 use ggs::transform::Rigid;
@@ -203,12 +203,23 @@ fn without_times(csv: &str) -> String {
         .join("\n")
 }
 
+/// A plan of `pairs` (built directly, not from a protocol) with `cfg`.
+fn kitti_plan(pairs: &[BenchPair], cfg: &RunConfig) -> Plan {
+    Plan {
+        name: "kitti-like",
+        pairs: pairs.to_vec(),
+        cfg: cfg.clone(),
+        metres: true,
+        shard: None,
+    }
+}
+
 #[test]
 fn an_interrupted_run_resumes_to_the_same_csv() {
     let dir = temp_dir("resume");
     let pairs = kitti_like(&dir.join("data"));
     let whole = dir.join("whole");
-    let once = run("kitti-like", &pairs, &config(), true, &whole, |_, _, _| {}).unwrap();
+    let once = run(&kitti_plan(&pairs, &config()), &whole, |_, _, _| {}).unwrap();
     assert_eq!(once.summary.pairs, 3);
     assert_eq!(once.summary.failed_to_run, 1);
     assert!(once.rows[2]
@@ -223,20 +234,12 @@ fn an_interrupted_run_resumes_to_the_same_csv() {
     );
     // "Kill" after the first pair: run a prefix, tear the last line, then run everything.
     let part = dir.join("part");
-    run(
-        "kitti-like",
-        &pairs[..2],
-        &config(),
-        true,
-        &part,
-        |_, _, _| {},
-    )
-    .unwrap();
+    run(&kitti_plan(&pairs[..2], &config()), &part, |_, _, _| {}).unwrap();
     let mut text = std::fs::read_to_string(part.join("pairs.csv")).unwrap();
     let keep = text.trim_end().rfind('\n').unwrap() + 1;
     text.truncate(keep + 10);
     std::fs::write(part.join("pairs.csv"), &text).unwrap();
-    let resumed = run("kitti-like", &pairs, &config(), true, &part, |_, _, _| {}).unwrap();
+    let resumed = run(&kitti_plan(&pairs, &config()), &part, |_, _, _| {}).unwrap();
     assert_eq!(resumed.resumed, 1);
     let a = std::fs::read_to_string(whole.join("pairs.csv")).unwrap();
     let b = std::fs::read_to_string(part.join("pairs.csv")).unwrap();
@@ -254,25 +257,17 @@ fn a_run_directory_of_another_configuration_is_refused() {
     let dir = temp_dir("config");
     let pairs = kitti_like(&dir.join("data"));
     let out = dir.join("run");
-    run(
-        "kitti-like",
-        &pairs[..1],
-        &config(),
-        true,
-        &out,
-        |_, _, _| {},
-    )
-    .unwrap();
+    run(&kitti_plan(&pairs[..1], &config()), &out, |_, _, _| {}).unwrap();
     assert!(out.join("run.json").is_file());
     // The same configuration resumes (on any thread count)...
     let mut same = config();
     same.pipeline.threads = 1;
-    let again = run("kitti-like", &pairs[..1], &same, true, &out, |_, _, _| {}).unwrap();
+    let again = run(&kitti_plan(&pairs[..1], &same), &out, |_, _, _| {}).unwrap();
     assert_eq!(again.resumed, 1);
     // ...another one does not mix its rows with the earlier ones.
     let mut other = config();
     other.max_rre_deg = 5.0;
-    let e = run("kitti-like", &pairs, &other, true, &out, |_, _, _| {})
+    let e = run(&kitti_plan(&pairs, &other), &out, |_, _, _| {})
         .err()
         .unwrap()
         .to_string();
@@ -282,7 +277,7 @@ fn a_run_directory_of_another_configuration_is_refused() {
     );
     let mut moved = config();
     moved.motion_seed = Some(3);
-    assert!(run("kitti-like", &pairs, &moved, true, &out, |_, _, _| {}).is_err());
+    assert!(run(&kitti_plan(&pairs, &moved), &out, |_, _, _| {}).is_err());
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
