@@ -41,7 +41,7 @@ from ._api import (
     voxel_downsample,
     write_point_cloud,
 )
-from . import metrics
+from . import bench, metrics
 
 __all__ = [
     "Evaluation",
@@ -51,6 +51,7 @@ __all__ = [
     "Result",
     "__version__",
     "as_points",
+    "bench",
     "estimate_normals",
     "evaluate",
     "metrics",

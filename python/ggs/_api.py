@@ -248,6 +248,73 @@ def _warn(result: Result) -> Result:
     return result
 
 
+def native_options(
+    *,
+    preset: Preset = "default",
+    rotations: Union[RotationSetName, str, npt.NDArray[np.float64], None] = None,
+    refine: Optional[RefineMethod] = None,
+    kernel: str = "none",
+    threads: Optional[int] = None,
+    top_k: Optional[int] = None,
+    search: Optional[SearchMode] = None,
+    precision: Precision = "mixed",
+    max_hypotheses: Optional[int] = None,
+    margin: Optional[float] = None,
+    verify: bool = True,
+    polish: bool = False,
+    max_memory: Union[int, str, None] = None,
+    distinct_radius: Optional[float] = None,
+    dedup: Optional[float] = None,
+    coarse_factor: Optional[float] = None,
+    coarse_keep: Optional[float] = None,
+    coarse_keep_min: Optional[int] = None,
+    max_distance: Optional[float] = None,
+    distance_quantile: Optional[float] = None,
+    max_iterations: Optional[int] = None,
+    neighbors: Optional[int] = None,
+    refine_cell: Optional[float] = None,
+) -> Tuple[Dict[str, Any], Optional[npt.NDArray[np.float64]]]:
+    """The pipeline options of :func:`register` as the native engine takes them (a dict of
+    plain values), and the rotation matrices when ``rotations`` is an array. Unknown options
+    raise TypeError; out-of-range ones ValueError."""
+    matrices = None
+    name: Optional[str] = None
+    if isinstance(rotations, str) or rotations is None:
+        name = rotations
+    else:
+        matrices = np.ascontiguousarray(rotations, dtype=np.float64)
+    if top_k is not None and top_k < 1:
+        raise ValueError("top_k must be at least 1")
+    if max_hypotheses is not None and max_hypotheses < 1:
+        raise ValueError("max_hypotheses must be at least 1")
+    options = {
+        "preset": preset,
+        "rotations": name,
+        "refine": refine,
+        "kernel": kernel,
+        "threads": _threads(threads),
+        "top_k": top_k,
+        "search": search,
+        "precision": precision,
+        "max_hypotheses": max_hypotheses,
+        "margin": margin,
+        "verify": verify,
+        "polish": polish,
+        "max_memory": _bytes(max_memory),
+        "distinct_radius": distinct_radius,
+        "dedup": dedup,
+        "coarse_factor": coarse_factor,
+        "coarse_keep": coarse_keep,
+        "coarse_keep_min": coarse_keep_min,
+        "max_distance": max_distance,
+        "distance_quantile": distance_quantile,
+        "max_iterations": max_iterations,
+        "neighbors": neighbors,
+        "refine_cell": refine_cell,
+    }
+    return options, matrices
+
+
 def register(
     source: PointsLike,
     target: PointsLike,
@@ -313,41 +380,31 @@ def register(
     Returns a :class:`Result`. Ambiguous or low-evidence results issue a :class:`GgsWarning`.
     Raises ValueError for bad points or options, KeyboardInterrupt on Ctrl-C.
     """
-    matrices = None
-    name: Optional[str] = None
-    if isinstance(rotations, str) or rotations is None:
-        name = rotations
-    else:
-        matrices = np.ascontiguousarray(rotations, dtype=np.float64)
-    options = {
-        "preset": preset,
-        "rotations": name,
-        "refine": refine,
-        "kernel": kernel,
-        "threads": _threads(threads),
-        "top_k": top_k,
-        "search": search,
-        "precision": precision,
-        "max_hypotheses": max_hypotheses,
-        "margin": margin,
-        "verify": verify,
-        "polish": polish,
-        "max_memory": _bytes(max_memory),
-        "distinct_radius": distinct_radius,
-        "dedup": dedup,
-        "coarse_factor": coarse_factor,
-        "coarse_keep": coarse_keep,
-        "coarse_keep_min": coarse_keep_min,
-        "max_distance": max_distance,
-        "distance_quantile": distance_quantile,
-        "max_iterations": max_iterations,
-        "neighbors": neighbors,
-        "refine_cell": refine_cell,
-    }
-    if top_k is not None and top_k < 1:
-        raise ValueError("top_k must be at least 1")
-    if max_hypotheses is not None and max_hypotheses < 1:
-        raise ValueError("max_hypotheses must be at least 1")
+    options, matrices = native_options(
+        preset=preset,
+        rotations=rotations,
+        refine=refine,
+        kernel=kernel,
+        threads=threads,
+        top_k=top_k,
+        search=search,
+        precision=precision,
+        max_hypotheses=max_hypotheses,
+        margin=margin,
+        verify=verify,
+        polish=polish,
+        max_memory=max_memory,
+        distinct_radius=distinct_radius,
+        dedup=dedup,
+        coarse_factor=coarse_factor,
+        coarse_keep=coarse_keep,
+        coarse_keep_min=coarse_keep_min,
+        max_distance=max_distance,
+        distance_quantile=distance_quantile,
+        max_iterations=max_iterations,
+        neighbors=neighbors,
+        refine_cell=refine_cell,
+    )
     fields = _ggs.register(
         as_points(source, "source"),
         as_points(target, "target"),
@@ -430,30 +487,85 @@ def render(
     return _ggs.render_view(layers, view, int(width), int(height))
 
 
+def _register_loaded(
+    src: Union[PointsLike, StrPath],
+    tgt: Union[PointsLike, StrPath],
+    voxel: Optional[float],
+    options: Dict[str, Any],
+) -> Result:
+    """:func:`register` of a pair given as points or paths (read here: on a Ray worker, the
+    worker reads its files), its warnings left to the caller (:func:`_warn`)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", GgsWarning)
+        return register(_load(src), _load(tgt), voxel, **options)
+
+
 def register_many(
     pairs: Iterable[PairLike],
     voxel: Optional[float] = None,
     *,
+    executor: Literal["local", "ray"] = "local",
+    retries: int = 3,
     on_error: Literal["raise", "return"] = "raise",
     progress: Optional[Callable[[int, Union[Result, Exception]], None]] = None,
     **options: Any,
 ) -> List[Union[Result, Exception]]:
     """Register every ``(source, target)`` of ``pairs`` (arrays, point-like objects or file
-    paths, read with :func:`read_point_cloud`) with the same options as :func:`register`.
+    paths, read with :func:`read_point_cloud`) with the same options as :func:`register`;
+    the results in the order of ``pairs``.
+
     ``on_error="return"`` puts the exception of a failing pair in its place instead of
-    raising; ``progress(index, result_or_error)`` is called after each pair."""
-    out: List[Union[Result, Exception]] = []
-    for k, (src, tgt) in enumerate(pairs):
-        try:
-            r: Union[Result, Exception] = register(_load(src), _load(tgt), voxel, **options)
-        except (ValueError, OSError) as e:
-            if on_error == "raise":
-                raise
-            r = e
-        out.append(r)
+    raising; ``progress(index, result_or_error)`` is called after each pair, in the order
+    they finish.
+
+    ``executor="ray"`` registers each pair as a Ray task (``ray.init()`` unless Ray is
+    already initialized). Give paths, not arrays: each worker reads its own pair's files
+    (arrays work, but travel through Ray's object store). Each task reserves ``threads``
+    CPUs (default 1) and uses that many threads; a task whose worker died is retried
+    ``retries`` times, then its Ray error counts as the pair's error.
+    """
+    items = list(pairs)
+    out: List[Union[Result, Exception, None]] = [None] * len(items)
+
+    def finish(k: int, r: Union[Result, Exception]) -> None:
+        if isinstance(r, Exception) and on_error == "raise":
+            raise r
+        out[k] = _warn(r) if isinstance(r, Result) else r
         if progress is not None:
             progress(k, r)
-    return out
+
+    if executor == "ray":
+        from ._ray import run_tasks
+
+        if options.get("threads") is None:
+            options["threads"] = 1
+        native_options(**options)  # bad options fail here, not on every worker
+        run_tasks(
+            _register_loaded,
+            ((k, (src, tgt, voxel, options)) for k, (src, tgt) in enumerate(items)),
+            cpus=max(1, int(options["threads"] or 1)),
+            retries=retries,
+            on_result=finish,
+            on_error=lambda k, e: finish(k, _unwrap(e)),
+        )
+    elif executor == "local":
+        for k, (src, tgt) in enumerate(items):
+            try:
+                r: Union[Result, Exception] = _register_loaded(src, tgt, voxel, options)
+            except (ValueError, OSError) as e:
+                r = e
+            finish(k, r)
+    else:
+        raise ValueError(f"executor must be 'local' or 'ray', not {executor!r}")
+    return [r for r in out if r is not None]
+
+
+def _unwrap(e: BaseException) -> Exception:
+    """The exception a Ray task raised (Ray wraps it), or Ray's own error (a lost worker)."""
+    cause = getattr(e, "cause", None)
+    if isinstance(cause, Exception):
+        return cause
+    return e if isinstance(e, Exception) else RuntimeError(str(e))
 
 
 def read_point_cloud(

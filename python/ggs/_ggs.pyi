@@ -1,15 +1,19 @@
 """Type stubs of the native engine (the public API is ``ggs``, in ``ggs/_api.py``)."""
 
-from typing import Any, Callable, Dict, List, Optional, Tuple, final
+import os
+from typing import Any, Callable, Dict, List, Optional, Tuple, Union, final
 
 import numpy as np
 import numpy.typing as npt
 
 __all__ = [
+    "BenchPlan",
+    "BenchRun",
     "PRESETS",
     "ROTATION_SETS",
     "Report",
     "__version__",
+    "bench_row_json",
     "estimate_normals",
     "evaluate",
     "read_point_cloud",
@@ -83,3 +87,24 @@ class Report:
         target_name: Optional[str] = None,
         command: Optional[str] = None,
     ) -> None: ...
+
+@final
+class BenchPlan:
+    def __new__(cls, selection: Dict[str, Any], options: Dict[str, Any]) -> BenchPlan: ...
+    @property
+    def name(self) -> str: ...
+    @property
+    def ids(self) -> List[str]: ...
+    def default_out(self) -> str: ...
+    def run_pair(self, k: int) -> Tuple[str, Optional[bytes]]: ...
+    def error_row(self, k: int, message: str) -> str: ...
+
+@final
+class BenchRun:
+    def __new__(cls, plan: BenchPlan, out: Union[str, os.PathLike[str]]) -> BenchRun: ...
+    def resumed(self) -> int: ...
+    def recorded(self, ids: List[str]) -> Dict[str, Optional[str]]: ...
+    def record(self, line: str, picture_png: Optional[bytes] = None) -> None: ...
+    def finish(self) -> None: ...
+
+def bench_row_json(line: str) -> str: ...

@@ -7,6 +7,7 @@
 //! through the search's cancel flag and raises `KeyboardInterrupt`) and to report progress.
 
 mod arrays;
+mod bench;
 mod report;
 mod result;
 
@@ -512,6 +513,9 @@ fn _ggs(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(rte, m)?)?;
     m.add_function(wrap_pyfunction!(report::render_view, m)?)?;
     m.add_class::<report::Report>()?;
+    m.add_class::<bench::BenchPlan>()?;
+    m.add_class::<bench::BenchRun>()?;
+    m.add_function(wrap_pyfunction!(bench::bench_row_json, m)?)?;
     m.add("ROTATION_SETS", ggs::rotations::NAMES.to_vec())?;
     m.add("PRESETS", Preset::NAMES.to_vec())?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
