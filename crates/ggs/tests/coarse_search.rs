@@ -25,6 +25,14 @@ fn ico() -> &'static RotationSet {
     SET.get_or_init(|| RotationSet::named("ico162-s10").unwrap())
 }
 
+/// The built-in set `name`, built once per test binary.
+macro_rules! named_set {
+    ($name:literal) => {{
+        static SET: OnceLock<RotationSet> = OnceLock::new();
+        SET.get_or_init(|| RotationSet::named($name).unwrap())
+    }};
+}
+
 /// A random cloud: `n` points in a 1.0 × 0.6 × 0.4 box plus a denser blob, so it has no
 /// symmetry a rotation could exploit.
 fn random_cloud(seed: u64, n: usize) -> Cloud {
@@ -46,6 +54,16 @@ fn random_cloud(seed: u64, n: usize) -> Cloud {
 }
 
 fn check_recovery(set: &RotationSet, seed: u64, k: usize, shift: [i32; 3]) {
+    check_recovery_in(set, seed, k, shift, Precision::Mixed);
+}
+
+fn check_recovery_in(
+    set: &RotationSet,
+    seed: u64,
+    k: usize,
+    shift: [i32; 3],
+    precision: Precision,
+) {
     let voxel = 0.08;
     let source = random_cloud(seed, 300);
     let truth = Rigid::new(
@@ -57,7 +75,11 @@ fn check_recovery(set: &RotationSet, seed: u64, k: usize, shift: [i32; 3]) {
         ),
     );
     let target = source.transformed(&truth);
-    let r = coarse_register(&source, &target, set, &SearchConfig::with_voxel(voxel)).unwrap();
+    let cfg = SearchConfig {
+        precision,
+        ..SearchConfig::with_voxel(voxel)
+    };
+    let r = coarse_register(&source, &target, set, &cfg).unwrap();
     let extent = source.aabb().unwrap().diagonal();
     // A later duplicate of an earlier rotation (limited15 keeps 3 float-noise ones) is
     // recovered as the earlier index with the same matrix.
@@ -86,6 +108,34 @@ proptest! {
     fn exact_recovery_ico162(seed in 1u64..u64::MAX, k in 0usize..2836,
                              sx in -30i32..30, sy in -30i32..30, sz in -30i32..30) {
         check_recovery(ico(), seed, k, [sx, sy, sz]);
+    }
+}
+
+// The other built-in sets, and the all-f64 precision: fewer cases each.
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(4))]
+    #[test]
+    fn exact_recovery_full15(seed in 1u64..u64::MAX, k in 0usize..6364,
+                             sx in -30i32..30, sy in -30i32..30, sz in -30i32..30) {
+        check_recovery(named_set!("full15"), seed, k, [sx, sy, sz]);
+    }
+
+    #[test]
+    fn exact_recovery_hopf15(seed in 1u64..u64::MAX, k in 0usize..6912,
+                             sx in -30i32..30, sy in -30i32..30, sz in -30i32..30) {
+        check_recovery(named_set!("hopf15"), seed, k, [sx, sy, sz]);
+    }
+
+    #[test]
+    fn exact_recovery_limited10(seed in 1u64..u64::MAX, k in 0usize..6173,
+                                sx in -30i32..30, sy in -30i32..30, sz in -30i32..30) {
+        check_recovery(named_set!("limited10"), seed, k, [sx, sy, sz]);
+    }
+
+    #[test]
+    fn exact_recovery_in_f64(seed in 1u64..u64::MAX, k in 0usize..1886,
+                             sx in -30i32..30, sy in -30i32..30, sz in -30i32..30) {
+        check_recovery_in(limited15(), seed, k, [sx, sy, sz], Precision::F64);
     }
 }
 
@@ -179,6 +229,23 @@ fn memory_guard_stops_before_allocating() {
         ..SearchConfig::with_voxel(suggested)
     };
     coarse_register(&source, &source, limited15(), &cfg).unwrap();
+}
+
+#[test]
+fn memory_guard_stops_the_coarse_to_fine_search_too() {
+    let source = random_cloud(5, 200);
+    let cfg = SearchConfig {
+        max_memory: Some(1 << 20),
+        mode: SearchMode::CoarseToFine(CoarseToFine::default()),
+        ..SearchConfig::with_voxel(0.002)
+    };
+    let e = coarse_register(&source, &source, limited15(), &cfg)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("budget") && e.contains("voxel size of at least"),
+        "{e}"
+    );
 }
 
 #[test]

@@ -1,6 +1,9 @@
 //! Inputs that crashed a fuzz target (see fuzz/README.md), kept so that the fixes stay
 //! fixed: `tests/data/fuzz/<target>/<name>` is read as the target's format, and each must
-//! give an error (or points), never a panic or an abort.
+//! give an error (or points), never a panic or an abort. `<format>-edge/` folders hold
+//! hand-made edge cases of the mesh readers (faces indexing past the vertices, zero-area and
+//! non-finite triangles, a binary STL whose count exceeds its data), read as points and
+//! sampled as meshes, as the fuzz targets do.
 
 use ggs::io::{parse_bytes, Format, ReadOptions};
 use std::path::{Path, PathBuf};
@@ -10,6 +13,7 @@ fn format_of(folder: &str) -> Format {
     let target = folder.split('-').next().unwrap_or(folder);
     match target {
         "text" => Format::Text,
+        "stl" => Format::Stl,
         "kitti" => Format::KittiBin,
         t => Format::from_name(t).unwrap_or_else(|| panic!("unknown fuzz target folder {t}")),
     }
@@ -35,6 +39,7 @@ fn cases() -> Vec<(String, PathBuf)> {
 fn every_crash_input_is_a_clean_result() {
     let cases = cases();
     assert!(!cases.is_empty());
+    let mut sampled_meshes = 0;
     for (target, file) in cases {
         let bytes = std::fs::read(&file).unwrap();
         let opts = ReadOptions {
@@ -47,14 +52,19 @@ fn every_crash_input_is_a_clean_result() {
             assert!(e.to_string().contains(&*file.to_string_lossy()), "{e}");
         }
         // Meshes are also sampled by the fuzz targets.
-        if matches!(target.as_str(), "obj" | "stl" | "ply") {
+        if matches!(format_of(&target), Format::Obj | Format::Stl | Format::Ply) {
             let sampled = ReadOptions {
                 mesh_samples: Some(32),
                 ..opts
             };
-            let _ = parse_bytes(&file, &bytes, &sampled);
+            if let Err(e) = parse_bytes(&file, &bytes, &sampled) {
+                assert!(e.to_string().contains(&*file.to_string_lossy()), "{e}");
+            }
+            sampled_meshes += 1;
         }
     }
+    // The mesh branch runs on the kept mesh inputs (it had none before the edge cases).
+    assert!(sampled_meshes >= 7, "{sampled_meshes} mesh inputs sampled");
 }
 
 /// The LAS header findings (`las/`): every one is a header the `las` or `laz` crate

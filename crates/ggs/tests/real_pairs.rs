@@ -151,10 +151,19 @@ fn coarse_search_on_real_pairs() {
                 }
                 None => "no".to_string(),
             };
-            if set_name == "limited15" {
+            // GICP only where its result is held to a bound: from a coarse pick outside the
+            // basin it has nothing to show (and ran to its iteration cap for no assertion).
+            let need = refined_bound(&pair.name, e_r, e_t, pair.voxel);
+            if set_name == "limited15" && need.is_none() {
+                writeln!(
+                    refined,
+                    "| {} | {e_r:.2} | {e_t:.4} | — | — | not refined: coarse pick outside the basin | | | | |",
+                    pair.name
+                )
+                .unwrap();
+            } else if set_name == "limited15" {
                 let g = refine(&source, &target, &r.transform, &RefineConfig::default()).unwrap();
                 let (f_r, f_t) = (rre(&g.transform, gt), rte(&g.transform, gt));
-                let need = refined_bound(&pair.name, e_r, e_t, pair.voxel);
                 let ok = need.is_none_or(|(mr, mt)| f_r < mr && f_t < mt);
                 if !ok {
                     failures.push(format!(
@@ -168,7 +177,7 @@ fn coarse_search_on_real_pairs() {
                     "| {} | {e_r:.2} | {e_t:.4} | {f_r:.3} | {f_t:.4} | {} | {:.3} / {:.3} | {:.5} | {} | {:.0} |",
                     pair.name,
                     match (need, ok) {
-                        (None, _) => "no".to_string(),
+                        (None, _) => unreachable!("refined only with a bound"),
                         (Some((mr, mt)), true) => format!("< {mr}° / {mt} m: pass"),
                         (Some((mr, mt)), false) => format!("< {mr}° / {mt} m: FAIL"),
                     },
