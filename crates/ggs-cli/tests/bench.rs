@@ -244,3 +244,32 @@ fn shards_merge_into_the_single_run_and_refuse_what_does_not_fit() {
         .success());
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn min_recall_fails_the_run_below_it_and_the_rows_do_not_depend_on_threads() {
+    let dir = tmp("min-recall");
+    let m = manifest(&dir);
+    // 0.001° is beyond GICP's accuracy on these scans: both pairs fail, recall 0.
+    let strict = ["-q", "--max-rre", "0.001", "--min-recall", "50"];
+    let o = bench_manifest(&m, &dir.join("strict"), &strict);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("recall 0.00 % is below --min-recall 50 % (0 of 2 pairs)"),
+        "{err}"
+    );
+    // The files are written all the same.
+    assert!(dir.join("strict/results.json").is_file());
+    let o = bench_manifest(&m, &dir.join("met"), &["-q", "--min-recall", "100"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    // The same rows (apart from times) with 1 and 8 threads per pair.
+    let o = bench_manifest(&m, &dir.join("eight"), &["-q", "--threads", "8"]);
+    assert!(o.status.success());
+    let o = bench_manifest(&m, &dir.join("one"), &["-q", "--threads", "1"]);
+    assert!(o.status.success());
+    assert_eq!(
+        rows_without_times(&dir.join("one/pairs.csv")),
+        rows_without_times(&dir.join("eight/pairs.csv"))
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
