@@ -269,10 +269,10 @@ mod tests {
             without_ms(&dir.join("any/pairs.csv"))
         );
         assert_eq!(serial.summary.successes, outcome.summary.successes);
-        for file in ["run.json", "summary.md"] {
-            let read = |d: &str| std::fs::read_to_string(dir.join(d).join(file)).unwrap();
-            assert_eq!(read("serial"), read("any"), "{file}");
-        }
+        // (summary.md holds the median time per pair: not compared.)
+        let read = |d: &str| std::fs::read_to_string(dir.join(d).join("run.json")).unwrap();
+        assert_eq!(read("serial"), read("any"));
+        assert!(dir.join("any/summary.md").is_file() && dir.join("any/report.html").is_file());
         // A run missing a pair cannot finish; reopened, it resumes the recorded ones.
         let mut part = RunDir::open(&plan, &dir.join("part")).unwrap();
         let (row, _) = crate::benchmark::run_pair_with_picture(&plan.pairs[1], &plan.cfg);
