@@ -181,10 +181,45 @@ def test_search_modes_and_precisions_agree():
 
 
 def test_same_answer_on_any_thread_count():
-    source, target = bunny_small()
-    a = ggs.register(source, target, voxel=0.006, threads=1)
-    b = ggs.register(source, target, voxel=0.006, threads=2)
-    np.testing.assert_array_equal(a.transformation, b.transformation)
+    # The 40k-point bundled scans (sums over many 1024-point chunks), in both precisions.
+    source = ggs.read_point_cloud(DATA / "bun045.ply")
+    target = ggs.read_point_cloud(DATA / "bun000.ply")
+    for precision in ["mixed", "f64"]:
+        runs = [ggs.register(source, target, voxel=0.005, threads=t, precision=precision) for t in (1, 2, 8)]
+        for r in runs[1:]:
+            np.testing.assert_array_equal(runs[0].transformation, r.transformation)
+            for field in ["hypotheses", "verified", "report"]:
+                a, b = (json.dumps(getattr(x, field), default=np.ndarray.tolist) for x in (runs[0], r))
+                assert a == b, field
+
+
+def test_error_types_name_the_file(tmp_path):
+    bad = tmp_path / "bad.ply"
+    bad.write_text("ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\n"
+                   "property float z\nend_header\n0 0 0\n1 x 0\n")
+    with pytest.raises(ValueError, match=r"bad.ply: line 9: 'x' is not a number"):
+        ggs.read_point_cloud(bad)
+    header = tmp_path / "h.pcd"
+    header.write_text("VERSION .7\nFIELDS x y z\nSIZE 4 4\n")
+    with pytest.raises(ValueError, match=r"h.pcd: line 4"):
+        ggs.read_point_cloud(header)
+    with pytest.raises(IsADirectoryError) as e:
+        ggs.read_point_cloud(tmp_path)
+    assert e.value.filename == str(tmp_path)
+    points = np.zeros((3, 3))
+    missing = tmp_path / "no" / "such" / "dir.ply"
+    with pytest.raises(FileNotFoundError) as f:
+        ggs.write_point_cloud(missing, points)
+    assert f.value.filename == str(missing) and not missing.parent.exists()
+    with pytest.raises(ValueError, match="x.weird: unknown point-cloud format"):
+        ggs.write_point_cloud(tmp_path / "x.weird", points)
+    # A failed write leaves the file that was there.
+    kept = tmp_path / "kept.ply"
+    ggs.write_point_cloud(kept, points)
+    before = kept.read_bytes()
+    with pytest.raises(ValueError):
+        ggs.write_point_cloud(kept, np.zeros((3, 2)))
+    assert kept.read_bytes() == before
 
 
 def test_rotation_sets_and_metrics():

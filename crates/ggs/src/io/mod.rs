@@ -405,6 +405,37 @@ mod tests {
     }
 
     #[test]
+    fn a_failed_atomic_write_keeps_the_file_that_was_there() {
+        let d = tmpdir("atomic-failure");
+        let path = d.join("keep.txt");
+        std::fs::write(&path, "old").unwrap();
+        // The temporary file cannot be created (a folder is in its place): the write fails,
+        // names the file, and the old content stays.
+        let blocker = d.join(format!(".keep.txt.{}.tmp", std::process::id()));
+        std::fs::create_dir(&blocker).unwrap();
+        let e = write_atomic(&path, b"new").unwrap_err().to_string();
+        assert!(e.contains("keep.txt"), "{e}");
+        assert_eq!(std::fs::read_to_string(&path).unwrap(), "old");
+        std::fs::remove_dir(&blocker).unwrap();
+        // The rename fails (a non-empty folder is the destination): no temporary file is
+        // left behind, the folder is untouched.
+        let dest = d.join("dest");
+        std::fs::create_dir_all(dest.join("inside")).unwrap();
+        assert!(write_atomic(&dest, b"new").is_err());
+        assert!(dest.join("inside").is_dir());
+        let left: Vec<_> = std::fs::read_dir(&d)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().to_string())
+            .filter(|n| n.ends_with(".tmp"))
+            .collect();
+        assert!(left.is_empty(), "{left:?}");
+        // And a successful write replaces the file.
+        write_atomic(&path, b"new").unwrap();
+        assert_eq!(std::fs::read_to_string(&path).unwrap(), "new");
+        std::fs::remove_dir_all(&d).unwrap();
+    }
+
+    #[test]
     fn unknown_extension_is_an_error() {
         let d = tmpdir("ext");
         let p = d.join("cloud.abc");
