@@ -43,6 +43,20 @@ mod tests {
     }
 
     #[test]
+    fn errors_are_between_the_two_poses_not_from_the_origin() {
+        // Both poses away from the identity (a test against the identity cannot tell
+        // t_gt − t_est from t_gt + t_est, nor R_estᵀR_gt from R_est).
+        let rot = |deg: f64| {
+            Rotation3::from_axis_angle(&Vector3::z_axis(), deg.to_radians()).into_inner()
+        };
+        let est = Rigid::new(rot(100.0), Vector3::new(1.0, 2.0, 3.0));
+        let truth = Rigid::new(rot(130.0), Vector3::new(4.0, 6.0, 3.0));
+        assert_eq!(rte(&est, &truth), 5.0);
+        assert!((rre(&est, &truth) - 30.0).abs() < 1e-9);
+        assert!((rre(&truth, &est) - 30.0).abs() < 1e-9);
+    }
+
+    #[test]
     fn clip_keeps_acos_defined() {
         // A matrix slightly "larger" than a rotation would push the cosine past 1.
         let a = Rigid::new(Matrix3::identity() * (1.0 + 1e-12), Vector3::zeros());
