@@ -196,4 +196,73 @@ mod tests {
         assert!((rotation_angle_deg(&a, &b) - 90.0).abs() < 1e-12);
         assert_eq!(rotation_angle_deg(&a, &a), 0.0);
     }
+
+    #[test]
+    fn apply_compose_and_identity_have_their_matrix_meaning() {
+        // Known values, not algebraic round trips (those hold for R·p − t too).
+        let quarter = Rotation3::from_axis_angle(&Vector3::z_axis(), std::f64::consts::FRAC_PI_2)
+            .into_inner();
+        let t = Rigid::new(quarter, Vector3::new(10.0, 20.0, 30.0));
+        let q = t.apply(&[1.0, 0.0, 0.0]);
+        assert!((q[0] - 10.0).abs() < 1e-12 && (q[1] - 21.0).abs() < 1e-12 && q[2] == 30.0);
+        let p = [1.5, -2.0, 0.25];
+        assert_eq!(Rigid::identity().apply(&p), p);
+        assert_eq!(Rigid::default(), Rigid::identity());
+        // compose = the product of the 4×4 matrices, applied right to left.
+        let u = rigid(0.4, -0.3, 1.2, [-1.0, 0.5, 2.0]);
+        let c = t.compose(&u);
+        assert!(
+            (c.to_matrix4() - t.to_matrix4() * u.to_matrix4())
+                .abs()
+                .max()
+                < 1e-12
+        );
+        let direct = t.apply(&u.apply(&p));
+        let composed = c.apply(&p);
+        for k in 0..3 {
+            assert!((direct[k] - composed[k]).abs() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn from_row_major_accepts_up_to_the_tolerance_and_no_further() {
+        let mut v = vec![0.0; 16];
+        for k in [0, 5, 10, 15] {
+            v[k] = 1.0;
+        }
+        // A bottom row off by exactly the tolerance is accepted, past it rejected.
+        v[12] = 0.25;
+        assert!(Rigid::from_row_major(&v, 0.25).is_ok());
+        v[12] = 0.5;
+        let e = Rigid::from_row_major(&v, 0.25).unwrap_err();
+        assert!(e.contains("last row"), "{e}");
+        v[12] = 0.0;
+        // The same for the rotation block: ‖RᵀR − I‖ = 2s + s² for R = (1 + s)·I.
+        let s = 0.125;
+        for k in [0, 5, 10] {
+            v[k] = 1.0 + s;
+        }
+        let err = 2.0 * s + s * s;
+        let det = (1.0 + s) * (1.0 + s) * (1.0 + s) - 1.0;
+        assert!(Rigid::from_row_major(&v, det.max(err)).is_ok());
+        let e = Rigid::from_row_major(&v, err * 0.99).unwrap_err();
+        assert!(e.contains("not a rotation"), "{e}");
+    }
+
+    #[test]
+    fn a_reflection_is_not_a_rotation_and_angles_are_exact_off_the_axes() {
+        // RᵀR = I but det = −1: only the determinant rejects it.
+        let mut v = vec![0.0; 16];
+        v[0] = -1.0;
+        v[5] = 1.0;
+        v[10] = 1.0;
+        v[15] = 1.0;
+        let e = Rigid::from_row_major(&v, 1e-6).unwrap_err();
+        assert!(e.contains("det = -1"), "{e}");
+        // 60° (cos = 1/2): an angle where (tr − 1)/2 is neither 0 nor ±1.
+        let a = Rotation3::from_axis_angle(&Vector3::x_axis(), 0.0).into_inner();
+        let b = Rotation3::from_axis_angle(&Vector3::x_axis(), std::f64::consts::FRAC_PI_3)
+            .into_inner();
+        assert!((rotation_angle_deg(&a, &b) - 60.0).abs() < 1e-9);
+    }
 }

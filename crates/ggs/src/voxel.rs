@@ -263,4 +263,16 @@ mod tests {
         assert_eq!(o.occupied(), 2);
         assert!(o.get(0, 0, 0) && o.get(2, 1, 0));
     }
+
+    #[test]
+    fn ten_million_cells_along_an_axis_is_refused_one_fewer_is_not() {
+        assert_eq!(
+            grid_dims([9_999_998.0, 0.0, 0.0], 1.0).unwrap(),
+            [9_999_999, 1, 1]
+        );
+        let e = grid_dims([9_999_999.0, 0.0, 0.0], 1.0)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("use a larger voxel"), "{e}");
+    }
 }

@@ -238,4 +238,85 @@ mod tests {
         let v = Verifier::new(&c, &c, 0.01, 0.01, &cfg);
         assert!((v.distance - 2.0 * 0.01).abs() < 1e-12, "{}", v.distance);
     }
+
+    /// A bumpy, asymmetric height field (so ICP has a unique answer that takes a few
+    /// iterations), and the same surface moved by 4° and a few centimetres.
+    fn bumpy_pair() -> (Cloud, Cloud, Rigid) {
+        let n = 40;
+        let target = Cloud::new(
+            (0..n * n)
+                .map(|i| {
+                    let (x, y) = ((i % n) as f64 / n as f64, (i / n) as f64 / n as f64);
+                    [
+                        x,
+                        y,
+                        0.1 * (3.0 * x).sin() * (2.0 * y + 0.5).cos() + 0.05 * x * y,
+                    ]
+                })
+                .collect(),
+        );
+        let a = 4f64.to_radians();
+        let r = Matrix3::new(a.cos(), -a.sin(), 0.0, a.sin(), a.cos(), 0.0, 0.0, 0.0, 1.0);
+        let truth = Rigid::new(r, Vector3::new(0.02, -0.01, 0.005));
+        (target.transformed(&truth.inverse()), target, truth)
+    }
+
+    /// `check` from the identity with `check_iterations` / `max_iterations`, against
+    /// `best_so_far`.
+    fn run_check(
+        check_iterations: usize,
+        max_iterations: usize,
+        reject: f64,
+        best: f64,
+    ) -> Checked {
+        let (source, target, _) = bumpy_pair();
+        let cfg = VerifyConfig {
+            check_iterations,
+            max_iterations,
+            reject_ratio: reject,
+            ..VerifyConfig::default()
+        };
+        let verifier = Verifier::new(&source, &target, 0.05, 0.025, &cfg);
+        let icp = RefineConfig::default();
+        let pair = PreparedPair::new(&source, &target, icp.neighbors, icp.epsilon).unwrap();
+        check(&pair, &verifier, &Rigid::identity(), &icp, &cfg, best).unwrap()
+    }
+
+    #[test]
+    fn check_runs_the_second_stage_up_to_the_total_cap() {
+        // One iteration at the check, then the rest of a 3-iteration cap: not enough to
+        // converge from 4° away, so exactly 3 run in all.
+        let c = run_check(1, 3, 0.6, 0.0);
+        assert_eq!(c.iterations, 3);
+        assert!(!c.rejected_early);
+        // Enough iterations: the right pose, scored as the verifier scores it.
+        let (source, target, truth) = bumpy_pair();
+        let c = run_check(2, 60, 0.6, 0.0);
+        assert!(c.iterations > 2 && c.iterations < 60, "{}", c.iterations);
+        assert!(crate::metrics::rre(&c.transform, &truth) < 0.01);
+        let v = Verifier::new(&source, &target, 0.05, 0.025, &VerifyConfig::default());
+        assert_eq!(c.evidence, v.evidence(&c.transform));
+        // Converged at the check: no second stage.
+        let converged = run_check(60, 80, 0.6, 0.0);
+        assert!(converged.iterations < 60);
+        assert_eq!(converged.iterations, run_check(60, 60, 0.6, 0.0).iterations);
+    }
+
+    #[test]
+    fn check_rejects_below_the_ratio_of_the_best_and_not_at_it() {
+        // The check's score (≤ 1) against reject_ratio × best_so_far.
+        let first = run_check(1, 30, 0.6, 0.0);
+        assert!(!first.rejected_early && first.iterations > 1);
+        let s = run_check(1, 1, 0.6, 0.0).evidence.score;
+        // (The quotient below needs s > 0.6 to differ from the product.)
+        assert!(s > 0.6, "{s}");
+        // Exactly at the threshold: kept; just above it: rejected after the check.
+        assert!(!run_check(1, 30, 0.5, 2.0 * s).rejected_early);
+        let r = run_check(1, 30, 0.5, 2.0 * s * 1.01);
+        assert!(r.rejected_early && r.iterations == 1);
+        // The threshold is a product: 0.6 × 1.7 s = 1.02 s rejects, 0.6 × 1.5 s = 0.9 s keeps
+        // (a sum 0.6 + 1.5 s would reject, a quotient 0.6 / 1.7 s would keep).
+        assert!(run_check(1, 30, 0.6, 1.7 * s).rejected_early);
+        assert!(!run_check(1, 30, 0.6, 1.5 * s).rejected_early);
+    }
 }

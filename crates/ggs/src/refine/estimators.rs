@@ -227,4 +227,108 @@ mod tests {
             assert!((fd - j.column(k)).norm() < 1e-6);
         }
     }
+
+    /// Points on three planes with their normals (so point-to-plane constrains all six
+    /// directions), and the same points moved by a tiny motion `(ω, v)`.
+    fn tiny_motion_problem() -> (
+        Vec<(Vector3<f64>, Vector3<f64>, Vector3<f64>)>,
+        Vector6<f64>,
+    ) {
+        let xi = Vector6::new(2e-5, -3e-5, 1e-5, 4e-5, -1e-5, 2.5e-5);
+        let r = exp_so3(&Vector3::new(xi[0], xi[1], xi[2]));
+        let t = Vector3::new(xi[3], xi[4], xi[5]);
+        let mut out = Vec::new();
+        for k in 0..60 {
+            let (a, b) = ((k % 6) as f64 * 0.1 - 0.25, (k / 6) as f64 * 0.07 - 0.3);
+            let (p, n) = match k % 3 {
+                0 => (Vector3::new(a, b, 0.4), Vector3::z()),
+                1 => (Vector3::new(0.3, a, b), Vector3::x()),
+                _ => (Vector3::new(b, -0.2, a), Vector3::y()),
+            };
+            out.push((p, r * p + t, r * n));
+        }
+        (out, xi)
+    }
+
+    #[test]
+    fn one_point_to_plane_step_recovers_a_tiny_motion_and_sums_add() {
+        let (corr, xi) = tiny_motion_problem();
+        let (mut all, mut first, mut second) = Default::default();
+        for (k, (p, q, n)) in corr.iter().enumerate() {
+            let w = if k % 2 == 0 { 0.5 } else { 2.0 };
+            NormalEquations::add_point_to_plane(&mut all, p, q, n, w);
+            let half: &mut NormalEquations = if k < 30 { &mut first } else { &mut second };
+            half.add_point_to_plane(p, q, n, w);
+        }
+        let step = all.solve().expect("six constrained directions");
+        // Linearized at the identity: exact up to second order in |ξ| (≈ 1e-9 here).
+        assert!((step - xi).norm() < 1e-3 * xi.norm(), "{step} vs {xi}");
+        first.add(&second);
+        assert!((first.h - all.h).norm() < 1e-12 && (first.b - all.b).norm() < 1e-15);
+        assert!((first.cost - all.cost).abs() < 1e-20 && all.cost > 0.0);
+    }
+
+    #[test]
+    fn one_term_is_its_formula() {
+        // Point-to-plane: J = nᵀ·∂p'/∂ξ, H = w JJᵀ, b = w r J, cost = w r².
+        let (p, q) = (Vector3::new(0.3, -0.2, 0.5), Vector3::new(0.1, 0.25, 0.45));
+        let n = Vector3::new(1.0, 2.0, 2.0) / 3.0;
+        let w = 0.7;
+        let mut e = NormalEquations::default();
+        e.add_point_to_plane(&p, &q, &n, w);
+        let j: Vector6<f64> = (n.transpose() * jacobian(&p)).transpose();
+        let r = n.dot(&p) - n.dot(&q);
+        assert!((e.h - j * j.transpose() * w).norm() < 1e-14);
+        assert!((e.b - j * (w * r)).norm() < 1e-14);
+        assert!((e.cost - w * r * r).abs() < 1e-15);
+        // GICP: d = p − q, H = w JᵀMJ, b = w JᵀMd, cost = w dᵀMd.
+        let m = Matrix3::new(2.0, 0.1, 0.0, 0.1, 1.0, 0.2, 0.0, 0.2, 3.0);
+        let mut g = NormalEquations::default();
+        g.add_gicp(&p, &q, &m, w);
+        let jac = jacobian(&p);
+        let d = Vector3::new(p.x - q.x, p.y - q.y, p.z - q.z);
+        assert!((g.h - jac.transpose() * (m * jac) * w).norm() < 1e-13);
+        assert!((g.b - jac.transpose() * (m * d) * w).norm() < 1e-14);
+        assert!((g.cost - w * (d.transpose() * m * d)[0]).abs() < 1e-15);
+    }
+
+    #[test]
+    fn a_gicp_step_recovers_a_tiny_motion() {
+        let (corr, xi) = tiny_motion_problem();
+        let m = Matrix3::new(2.0, 0.1, 0.0, 0.1, 1.0, 0.2, 0.0, 0.2, 3.0);
+        let mut e = NormalEquations::default();
+        for (p, q, _) in &corr {
+            e.add_gicp(p, q, &m, 1.5);
+        }
+        let step = e.solve().unwrap();
+        assert!((step - xi).norm() < 1e-3 * xi.norm(), "{step} vs {xi}");
+    }
+
+    #[test]
+    fn a_degenerate_system_is_solved_in_its_constrained_directions() {
+        // One plane z = 0 moved along z: only v_z, ω_x and ω_y are constrained; Cholesky fails
+        // and the damped solve keeps the others at zero.
+        let mut e = NormalEquations::default();
+        for k in 0..50 {
+            let p = Vector3::new((k % 7) as f64 * 0.1, (k / 7) as f64 * 0.1, 0.0);
+            let q = p + Vector3::new(0.0, 0.0, 1e-4);
+            e.add_point_to_plane(&p, &q, &Vector3::z(), 1.0);
+        }
+        assert!(e.h.cholesky().is_none());
+        let step = e.solve().expect("damped");
+        assert!((step[5] - 1e-4).abs() < 1e-8, "{step}");
+        for i in [0, 1, 2, 3, 4] {
+            assert!(step[i].abs() < 1e-8, "{i}: {step}");
+        }
+    }
+
+    #[test]
+    fn rotation_angles_about_each_axis() {
+        for axis in [Vector3::x(), Vector3::y(), Vector3::z()] {
+            for angle in [1e-7, 0.3, 2.5] {
+                let r = exp_so3(&(axis * angle));
+                assert!((rotation_angle_rad(&r) - angle).abs() < 1e-12 * angle.max(1.0));
+            }
+        }
+    }
 }

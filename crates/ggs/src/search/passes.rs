@@ -226,3 +226,110 @@ pub(super) fn exact_best(
         rescore(&pending, scores)?;
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::correlate::{ApproxBest, BestOffset};
+
+    fn exact(m: i64) -> Option<BestOffset> {
+        Some(BestOffset {
+            match_score: m,
+            offset: [m as usize, 0, 0],
+        })
+    }
+
+    fn approx(value: f64, bound: f64) -> Option<ApproxBest> {
+        Some(ApproxBest {
+            value,
+            error_bound: bound,
+            offset: [0; 3],
+        })
+    }
+
+    /// `exact_best` with a re-scoring that reveals `truth[k]` and records what it was asked.
+    fn best(
+        scores: &mut LevelScores,
+        eligible: impl Fn(usize) -> bool,
+        truth: &[i64],
+    ) -> (Option<usize>, Vec<usize>) {
+        let mut asked = Vec::new();
+        let got = exact_best(scores, eligible, |pending, s| {
+            for &k in pending {
+                s.exact[k] = exact(truth[k]);
+                asked.push(k);
+            }
+            Ok(())
+        })
+        .unwrap();
+        (got, asked)
+    }
+
+    #[test]
+    fn the_highest_exact_score_wins_and_ties_go_to_the_lowest_index() {
+        let mut s = LevelScores::new(5);
+        s.exact = vec![exact(3), exact(7), None, exact(7), exact(5)];
+        let (got, asked) = best(&mut s, |_| true, &[0; 5]);
+        assert_eq!(got, Some(1), "the first of the two 7s");
+        assert!(asked.is_empty());
+        // Not eligible, or not scored at all: never chosen.
+        let mut s = LevelScores::new(4);
+        s.exact = vec![exact(9), None, exact(4), exact(2)];
+        let (got, _) = best(&mut s, |k| k != 0, &[0; 4]);
+        assert_eq!(got, Some(2));
+        let mut s = LevelScores::new(3);
+        let (got, asked) = best(&mut s, |_| true, &[0; 3]);
+        assert_eq!((got, asked), (None, vec![]));
+    }
+
+    #[test]
+    fn only_intervals_that_reach_the_best_are_rescored() {
+        // Rotation 0 is exact at 10; rotation 1 is at least 11, which sets the floor. Rotation
+        // 1 may reach 12 (re-scored: truly 11, the winner); rotation 2 reaches at most 9
+        // (never re-scored); rotation 3 reaches exactly the floor (re-scored: truly 11, a tie
+        // lost to the lower index); rotation 4 is not eligible.
+        let mut s = LevelScores::new(5);
+        s.exact[0] = exact(10);
+        s.approx[1] = approx(11.5, 0.5);
+        s.approx[2] = approx(8.5, 0.5);
+        s.approx[3] = approx(10.5, 0.5);
+        s.approx[4] = approx(20.0, 1.0);
+        let (got, mut asked) = best(&mut s, |k| k != 4, &[10, 11, 9, 11, 30]);
+        asked.sort();
+        assert_eq!(got, Some(1));
+        assert_eq!(asked, vec![1, 3]);
+        assert!(s.exact[2].is_none() && s.exact[4].is_none());
+        // A lower bound above every exact score forces its re-scoring too.
+        let mut s = LevelScores::new(2);
+        s.exact[0] = exact(10);
+        s.approx[1] = approx(14.0, 1.0);
+        let (got, asked) = best(&mut s, |_| true, &[10, 13]);
+        assert_eq!((got, asked), (Some(1), vec![1]));
+    }
+
+    #[test]
+    fn stage_times_add_up() {
+        let ms = Duration::from_millis;
+        let mut a = StageTimes {
+            voxelize: ms(1),
+            forward: ms(2),
+            product: ms(3),
+            inverse: ms(4),
+            max_rounding_error: 1e-9,
+            flops: 10.0,
+        };
+        a.add(&StageTimes {
+            voxelize: ms(10),
+            forward: ms(20),
+            product: ms(30),
+            inverse: ms(40),
+            max_rounding_error: 1e-12,
+            flops: 5.0,
+        });
+        assert_eq!(
+            (a.voxelize, a.forward, a.product, a.inverse),
+            (ms(11), ms(22), ms(33), ms(44))
+        );
+        assert_eq!((a.max_rounding_error, a.flops), (1e-9, 15.0));
+    }
+}
