@@ -8,7 +8,7 @@ import numpy.typing as npt
 
 __all__ = [
     "BenchPlan",
-    "BenchRun",
+    "RunDirectory",
     "PRESETS",
     "ROTATION_SETS",
     "Report",
@@ -100,8 +100,8 @@ class BenchPlan:
     def error_row(self, k: int, message: str) -> str: ...
 
 @final
-class BenchRun:
-    def __new__(cls, plan: BenchPlan, out: Union[str, os.PathLike[str]]) -> BenchRun: ...
+class RunDirectory:
+    def __new__(cls, plan: BenchPlan, out: Union[str, os.PathLike[str]]) -> RunDirectory: ...
     def resumed(self) -> int: ...
     def recorded(self, ids: List[str]) -> Dict[str, Optional[str]]: ...
     def record(self, line: str, picture_png: Optional[bytes] = None) -> None: ...

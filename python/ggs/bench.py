@@ -152,7 +152,7 @@ def run(
     report = _tty_progress if progress is True or (
         progress is None and sys.stderr.isatty()
     ) else (progress or None)
-    directory = _ggs.BenchRun(plan, out_dir)
+    directory = _ggs.RunDirectory(plan, out_dir)
     ids: List[str] = plan.ids
     recorded = directory.recorded(ids)
     todo = [k for k, i in enumerate(ids) if not (i in recorded and not _lost(recorded[i]))]

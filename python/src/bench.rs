@@ -3,7 +3,7 @@
 //! A [`BenchPlan`] is the library's `benchmark::Plan` (built from the same selection and
 //! options as `ggs bench`, validated in the library); [`BenchPlan::run_pair`] runs one pair
 //! where it is called (a Ray worker reads its clouds from their paths) and returns the row as
-//! its CSV line, which crosses processes bit for bit; a [`BenchRun`] is the run directory the
+//! its CSV line, which crosses processes bit for bit; a [`RunDirectory`] is the run directory the
 //! driver records those lines in, in any order, and finishes with the files `ggs bench` writes.
 
 use crate::arrays::to_py_err;
@@ -126,11 +126,11 @@ pub fn bench_row_json(line: &str) -> PyResult<String> {
 
 /// An open run directory.
 #[pyclass(module = "ggs._ggs")]
-pub struct BenchRun {
+pub struct RunDirectory {
     dir: Option<RunDir>,
 }
 
-impl BenchRun {
+impl RunDirectory {
     fn dir(&mut self) -> PyResult<&mut RunDir> {
         self.dir
             .as_mut()
@@ -139,12 +139,12 @@ impl BenchRun {
 }
 
 #[pymethods]
-impl BenchRun {
+impl RunDirectory {
     /// Open `out` for `plan` (a directory of another configuration is refused).
     #[new]
     fn new(plan: &BenchPlan, out: PathBuf) -> PyResult<Self> {
         let dir = RunDir::open(&plan.plan, &out).map_err(to_py_err)?;
-        Ok(BenchRun { dir: Some(dir) })
+        Ok(RunDirectory { dir: Some(dir) })
     }
 
     /// Pairs of the plan an earlier run had finished.

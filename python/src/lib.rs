@@ -514,7 +514,7 @@ fn _ggs(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(report::render_view, m)?)?;
     m.add_class::<report::Report>()?;
     m.add_class::<bench::BenchPlan>()?;
-    m.add_class::<bench::BenchRun>()?;
+    m.add_class::<bench::RunDirectory>()?;
     m.add_function(wrap_pyfunction!(bench::bench_row_json, m)?)?;
     m.add("ROTATION_SETS", ggs::rotations::NAMES.to_vec())?;
     m.add("PRESETS", Preset::NAMES.to_vec())?;
