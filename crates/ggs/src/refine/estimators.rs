@@ -228,11 +228,11 @@ mod tests {
         }
     }
 
-    /// Points on three planes with their normals (so point-to-plane constrains all six
-    /// directions), and the same points moved by a tiny motion `(ω, v)`.
     /// `(p, q, n)`: a point, its match and the match's normal.
     type Correspondence = (Vector3<f64>, Vector3<f64>, Vector3<f64>);
 
+    /// Points on three planes with their normals (so point-to-plane constrains all six
+    /// directions), and the same points moved by a tiny motion `(ω, v)`.
     fn tiny_motion_problem() -> (Vec<Correspondence>, Vector6<f64>) {
         let xi = Vector6::new(2e-5, -3e-5, 1e-5, 4e-5, -1e-5, 2.5e-5);
         let r = exp_so3(&Vector3::new(xi[0], xi[1], xi[2]));
