@@ -265,4 +265,17 @@ mod tests {
             .into_inner();
         assert!((rotation_angle_deg(&a, &b) - 60.0).abs() < 1e-9);
     }
+
+    #[test]
+    fn a_stretch_with_unit_determinant_is_judged_by_its_orthogonality() {
+        // diag(2, 1/2, 1): det = 1 exactly, ‖RᵀR − I‖∞ = 3 exactly.
+        let mut v = vec![0.0; 16];
+        v[0] = 2.0;
+        v[5] = 0.5;
+        v[10] = 1.0;
+        v[15] = 1.0;
+        assert!(Rigid::from_row_major(&v, 3.0).is_ok());
+        let e = Rigid::from_row_major(&v, 2.9).unwrap_err();
+        assert!(e.contains("not a rotation"), "{e}");
+    }
 }
