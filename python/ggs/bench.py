@@ -86,8 +86,8 @@ def _plan(spec: str) -> Any:
 
 def _run_pair(spec: str, k: int) -> Tuple[str, Optional[bytes]]:
     """Run pair ``k`` of the spec's plan where this is called (a Ray task)."""
-    line, png = _plan(spec).run_pair(k)
-    return line, png
+    result: Tuple[str, Optional[bytes]] = _plan(spec).run_pair(k)
+    return result
 
 
 def _tty_progress(done: int, total: int, row: Dict[str, Any]) -> None:
@@ -158,7 +158,7 @@ def run(
     todo = [k for k, i in enumerate(ids) if not (i in recorded and not _lost(recorded[i]))]
     done = resumed = len(ids) - len(todo)
 
-    def record(k: int, line: str, png: Optional[bytes]) -> None:
+    def record(line: str, png: Optional[bytes]) -> None:
         nonlocal done
         directory.record(line, png)
         done += 1
@@ -167,7 +167,7 @@ def run(
 
     if executor == "local":
         for k in todo:
-            record(k, *plan.run_pair(k))
+            record(*plan.run_pair(k))
     else:
         from ._ray import run_tasks
 
@@ -176,8 +176,8 @@ def run(
             ((k, (spec, k)) for k in todo),
             cpus=max(1, native["threads"] or 1),
             retries=retries,
-            on_result=lambda k, v: record(k, v[0], v[1]),
-            on_error=lambda k, e: record(k, plan.error_row(k, f"{LOST}{_one_line(e)}"), None),
+            on_result=lambda k, v: record(*v),
+            on_error=lambda k, e: record(plan.error_row(k, f"{LOST}{_one_line(e)}"), None),
         )
     directory.finish()
     results = json.loads((out_dir / "results.json").read_text())

@@ -147,11 +147,6 @@ impl RunDirectory {
         Ok(RunDirectory { dir: Some(dir) })
     }
 
-    /// Pairs of the plan an earlier run had finished.
-    fn resumed(&mut self) -> PyResult<usize> {
-        Ok(self.dir()?.resumed())
-    }
-
     /// `{id: error or None}` of the given ids that have a row.
     fn recorded(&mut self, ids: Vec<String>) -> PyResult<HashMap<String, Option<String>>> {
         let dir = self.dir()?;
