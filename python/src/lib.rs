@@ -430,7 +430,7 @@ fn voxel_downsample<'py>(
         )));
     }
     let pts = points_of("points", points)?;
-    let out = py.detach(|| ggs::voxel::cell_centroids(&pts, voxel));
+    let out = py.detach(|| ggs::thin::cell_centroids(&pts, voxel));
     points_array(py, &out)
 }
 

@@ -4,7 +4,7 @@
 use crate::arrays::matrix_array;
 use ggs::pipeline::Registration;
 use ggs::refine::RefineResult;
-use ggs::search::Hypothesis;
+use ggs::coarse::Hypothesis;
 use ggs::Rigid;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};

@@ -6,7 +6,7 @@ use anyhow::{bail, Context, Result};
 use clap::Args;
 use ggs::pipeline::{Preset, RegistrationConfig};
 use ggs::rotations::RotationSet;
-use ggs::search;
+use ggs::coarse;
 
 /// The configuration of the pipeline, shared by `register` and `bench`: a preset and the
 /// flags that change it.
@@ -132,23 +132,23 @@ impl SearchArgs {
     /// The search mode (the preset's `mode` unless --search is given) and precision.
     pub fn parse(
         &self,
-        preset: search::SearchMode,
-    ) -> Result<(search::SearchMode, search::Precision)> {
+        preset: coarse::SearchMode,
+    ) -> Result<(coarse::SearchMode, coarse::Precision)> {
         // The preset's parameters (the library's defaults for a preset without them), changed
         // by the options given.
         let d = match preset {
-            search::SearchMode::CoarseToFine(c) => c,
-            search::SearchMode::Exhaustive => search::CoarseToFine::default(),
+            coarse::SearchMode::CoarseToFine(c) => c,
+            coarse::SearchMode::Exhaustive => coarse::CoarseToFine::default(),
         };
-        let c2f = search::CoarseToFine {
+        let c2f = coarse::CoarseToFine {
             factor: self.coarse_factor.unwrap_or(d.factor),
             keep_fraction: self.coarse_keep.unwrap_or(d.keep_fraction),
             keep_min: self.coarse_keep_min.unwrap_or(d.keep_min),
             neighbour_deg: d.neighbour_deg,
         };
         let mode = match (&self.search, preset) {
-            (Some(name), _) => search::SearchMode::from_name(name, c2f).context("--search")?,
-            (None, search::SearchMode::CoarseToFine(_)) => search::SearchMode::CoarseToFine(c2f),
+            (Some(name), _) => coarse::SearchMode::from_name(name, c2f).context("--search")?,
+            (None, coarse::SearchMode::CoarseToFine(_)) => coarse::SearchMode::CoarseToFine(c2f),
             (None, m) => m,
         };
         let precision = self.precision.parse().context("--precision")?;

@@ -9,7 +9,7 @@ use ggs::io::{self, ply, ReadOptions};
 use ggs::pipeline::{self, Registration, RegistrationConfig, Verification, VoxelSize};
 use ggs::refine;
 use ggs::rotations::RotationSet;
-use ggs::search;
+use ggs::coarse;
 use ggs::{Cloud, Point, Rigid};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -262,11 +262,11 @@ fn command_line() -> String {
 
 fn print_summary(reg: &Registration, preset: &str, read_ms: f64, total_ms: f64) -> Result<()> {
     let r = &reg.search;
-    let g = &r.geometry;
+    let g = &r.stats.geometry;
     outln!();
     outln!(
         "voxel       {}{}",
-        r.voxel,
+        r.stats.voxel,
         match &reg.voxel_rule {
             Some(rule) => format!(" ({rule}; set --voxel to choose)"),
             None => String::new(),
@@ -274,23 +274,23 @@ fn print_summary(reg: &Registration, preset: &str, read_ms: f64, total_ms: f64) 
     );
     outln!(
         "search      preset {preset}: {} rotations ({}), {}",
-        r.rotations,
-        r.rotation_set,
-        match r.mode {
-            search::SearchMode::Exhaustive => "exhaustive",
-            search::SearchMode::CoarseToFine(_) => "coarse-to-fine",
+        r.stats.rotations,
+        r.stats.rotation_set,
+        match r.stats.mode {
+            coarse::SearchMode::Exhaustive => "exhaustive",
+            coarse::SearchMode::CoarseToFine(_) => "coarse-to-fine",
         }
     );
     outln!(
         "rotation    #{} (coarse winner), score {} (match {} = 5·n11 − n01)",
-        r.rotation_index,
-        r.score,
-        r.match_score
+        r.winner().rotation_index,
+        r.winner().score,
+        r.winner().match_score
     );
     match (&r.runner_up, r.ambiguity) {
         (Some(ru), Some(a)) => outln!(
             "ambiguity   {a:.3} (best rotation > {:.0}° away: #{} with match {})",
-            r.distinct_radius_deg,
+            r.stats.distinct_radius_deg,
             ru.rotation_index,
             ru.match_score
         ),
@@ -323,7 +323,7 @@ fn print_summary(reg: &Registration, preset: &str, read_ms: f64, total_ms: f64) 
         g.kernel_dims[0],
         g.kernel_dims[1],
         g.kernel_dims[2],
-        r.target_occupied,
+        r.stats.target_occupied,
         g.source_max[0],
         g.source_max[1],
         g.source_max[2],
@@ -331,25 +331,25 @@ fn print_summary(reg: &Registration, preset: &str, read_ms: f64, total_ms: f64) 
         g.fft_len[1],
         g.fft_len[2]
     );
-    if r.searched_points < r.source_points {
+    if r.stats.searched_points < r.stats.source_points {
         outln!(
             "            source searched as {} representatives of its {} points (one per cell of voxel / {})",
-            r.searched_points,
-            r.source_points,
-            search::REPRESENTATIVE_DIVISIONS
+            r.stats.searched_points,
+            r.stats.source_points,
+            coarse::REPRESENTATIVE_DIVISIONS
         );
     }
-    if let Some(c) = &r.coarse_level {
+    if let Some(c) = &r.stats.coarse_level {
         let f = &c.geometry.fft_len;
         outln!(
             "coarse      voxel {}, {} source points, FFT {}×{}×{}; kept {} of {} rotations ({} round(s); winner ranked {}), with neighbours within {:.1}°: {} scored at the voxel size",
-            c.voxel, c.source_points, f[0], f[1], f[2], c.kept, r.rotations, c.rounds, c.winner_rank, c.neighbour_deg, r.scored
+            c.voxel, c.source_points, f[0], f[1], f[2], c.kept, r.stats.rotations, c.rounds, c.winner_rank, c.neighbour_deg, r.stats.scored
         );
     }
     let t = &reg.timings;
     outln!(
         "time        {:.0} ms total: read {:.0}, search {:.0}, verify {:.0}, refine {:.0} ms on {} thread(s)",
-        total_ms, read_ms, t.search_ms, t.verify_ms, t.refine_ms, r.threads
+        total_ms, read_ms, t.search_ms, t.verify_ms, t.refine_ms, r.stats.threads
     );
     Ok(())
 }
@@ -397,7 +397,7 @@ fn print_timings(reg: &Registration, read_ms: f64, total_ms: f64) -> Result<()> 
     outln!("read both clouds                {read_ms:>10.1}");
     outln!("target kernel + spectra         {:>10.1}", t.target_ms);
     outln!("rotated extents                 {:>10.1}", t.extents_ms);
-    if r.coarse_level.is_some() {
+    if r.stats.coarse_level.is_some() {
         outln!(
             "coarse level (all rotations)    {:>10.1}",
             t.coarse_level_ms
@@ -405,8 +405,8 @@ fn print_timings(reg: &Registration, read_ms: f64, total_ms: f64) -> Result<()> 
     }
     outln!(
         "search ({} rotations, {} thr)  {:>10.1}",
-        r.scored,
-        r.threads,
+        r.stats.scored,
+        r.stats.threads,
         t.search_ms
     );
     for (name, v) in [
@@ -417,10 +417,10 @@ fn print_timings(reg: &Registration, read_ms: f64, total_ms: f64) -> Result<()> 
     ] {
         outln!("{name:<32} {:>10} {v:>10.1}  {:>5.1} %", "", pct(v));
     }
-    if r.precision == search::Precision::Mixed {
+    if r.stats.precision == coarse::Precision::Mixed {
         outln!(
             "  of which f64 re-scoring ({} rotation(s)) {:>5.1} wall",
-            r.rescored,
+            r.stats.rescored,
             t.rescore_ms
         );
     }
@@ -428,9 +428,9 @@ fn print_timings(reg: &Registration, read_ms: f64, total_ms: f64) -> Result<()> 
     if fft_cpu_s > 0.0 {
         outln!(
             "  FFT work {:.2} GFLOP (nominal 5·N·log2 N): {:.1} GFLOP/s per core in the FFT stages, {:.1} GFLOP/s over the search wall time",
-            r.fft_gflop,
-            r.fft_gflop / fft_cpu_s,
-            r.fft_gflop / ((t.search_ms + t.coarse_level_ms) * 1e-3)
+            r.stats.fft_gflop,
+            r.stats.fft_gflop / fft_cpu_s,
+            r.stats.fft_gflop / ((t.search_ms + t.coarse_level_ms) * 1e-3)
         );
     }
     outln!(

@@ -6,7 +6,7 @@ use criterion::{criterion_group, criterion_main, Criterion};
 use ggs::io::read_cloud;
 use ggs::refine::{refine, RefineConfig};
 use ggs::rotations::RotationSet;
-use ggs::search::{coarse_register, SearchConfig};
+use ggs::coarse::{coarse_register, SearchConfig};
 use std::path::PathBuf;
 
 fn data(name: &str) -> ggs::Cloud {
@@ -36,7 +36,7 @@ fn pipeline(c: &mut Criterion) {
     }
     let coarse = coarse_register(&source, &target, &set, &SearchConfig::with_voxel(0.006))
         .unwrap()
-        .transform;
+        .transform();
     g.bench_function("gicp from coarse", |b| {
         b.iter(|| refine(&source, &target, &coarse, &RefineConfig::default()).unwrap())
     });

@@ -7,13 +7,13 @@
 //! coarse-to-fine). docs/performance.md has the results and the FLOP counts.
 
 use criterion::{criterion_group, criterion_main, BatchSize, Criterion};
-use ggs::correlate::{CpuCorrelator, Geometry, Real, Workspace};
+use ggs::coarse::cpu::{CpuCorrelator, Geometry, Real, Workspace};
 use ggs::io::read_cloud;
 use ggs::refine::{refine, RefineConfig};
-use ggs::rotated::RotatableCloud;
+use ggs::coarse::rotated::RotatableCloud;
 use ggs::rotations::RotationSet;
-use ggs::search::{coarse_register, CoarseToFine, SearchConfig, SearchMode};
-use ggs::voxel::{grid_dims, Occupancy};
+use ggs::coarse::{coarse_register, CoarseToFine, SearchConfig, SearchMode};
+use ggs::coarse::voxel::{grid_dims, Occupancy};
 use ggs::Cloud;
 use std::path::PathBuf;
 
@@ -170,7 +170,7 @@ fn stages(c: &mut Criterion) {
     }
     let coarse = coarse_register(&source, &target, &set, &SearchConfig::with_voxel(VOXEL))
         .unwrap()
-        .transform;
+        .transform();
     let refine_cfg = RefineConfig {
         threads: 2,
         ..RefineConfig::default()

@@ -25,10 +25,9 @@
 
 pub mod benchmark;
 pub mod cloud;
-pub mod correlate;
+pub mod coarse;
 pub mod error;
 pub mod generator;
-pub mod grid_view;
 pub mod html;
 pub mod io;
 pub mod manifest;
@@ -39,14 +38,12 @@ pub mod pipeline;
 pub mod refine;
 pub mod render;
 pub mod rng;
-pub mod rotated;
 pub mod rotations;
-pub mod search;
 pub mod simd;
 pub mod spacing;
+pub mod thin;
 pub mod threads;
 pub mod transform;
-pub mod voxel;
 
 #[cfg(test)]
 pub(crate) mod test_rng;
@@ -54,3 +51,29 @@ pub(crate) mod test_rng;
 pub use cloud::{Cloud, Point};
 pub use error::{GgsError, Location, Result};
 pub use transform::Rigid;
+
+/// The coarse search's former path.
+#[deprecated(since = "0.2.0", note = "the coarse search is `ggs::coarse`")]
+pub mod search {
+    pub use crate::coarse::*;
+}
+
+/// The CPU correlator's former path.
+#[deprecated(since = "0.2.0", note = "use `ggs::coarse::cpu` (and the `Correlator` trait)")]
+pub mod correlate {
+    pub use crate::coarse::correlator::{ApproxBest, BestOffset};
+    pub use crate::coarse::cpu::*;
+}
+
+/// Voxelization's former path.
+#[deprecated(since = "0.2.0", note = "use `ggs::coarse::voxel` (thinning: `ggs::thin`)")]
+pub mod voxel {
+    pub use crate::coarse::voxel::*;
+    pub use crate::thin::cell_centroids;
+}
+
+/// The rotated source's former path.
+#[deprecated(since = "0.2.0", note = "use `ggs::coarse::rotated`")]
+pub mod rotated {
+    pub use crate::coarse::rotated::*;
+}

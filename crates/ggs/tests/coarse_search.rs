@@ -7,7 +7,7 @@ use common::Lcg;
 use ggs::io::read_cloud;
 use ggs::metrics::{rre, rte};
 use ggs::rotations::RotationSet;
-use ggs::search::{
+use ggs::coarse::{
     coarse_register, CoarseToFine, Precision, SearchConfig, SearchMode, SearchResult,
 };
 use ggs::{Cloud, Rigid};
@@ -83,17 +83,17 @@ fn check_recovery_in(
     let extent = source.aabb().unwrap().diagonal();
     // A later duplicate of an earlier rotation (limited15 keeps 3 float-noise ones) is
     // recovered as the earlier index with the same matrix.
-    let same_matrix = rre(&r.transform, &truth) < 1e-6;
+    let same_matrix = rre(&r.transform(), &truth) < 1e-6;
     assert!(
-        r.rotation_index == k || (same_matrix && r.rotation_index < k),
+        r.winner().rotation_index == k || (same_matrix && r.winner().rotation_index < k),
         "seed {seed}: rotation {k} recovered as {}",
-        r.rotation_index
+        r.winner().rotation_index
     );
-    let e = rte(&r.transform, &truth);
+    let e = rte(&r.transform(), &truth);
     assert!(e < 1e-9 * extent, "seed {seed} k {k}: RTE {e:e}");
     // Perfect overlap: every source cell on a kernel cell, m = 5·n11.
-    assert_eq!(r.match_score, 5 * r.target_occupied as i64);
-    assert!(r.max_rounding_error < 1e-6);
+    assert_eq!(r.winner().match_score, 5 * r.stats.target_occupied as i64);
+    assert!(r.stats.max_rounding_error < 1e-6);
 }
 
 proptest! {
@@ -140,14 +140,14 @@ proptest! {
 }
 
 fn assert_identical(a: &SearchResult, b: &SearchResult) {
-    assert_eq!(a.transform.to_rows(), b.transform.to_rows());
-    assert_eq!(a.rotation_index, b.rotation_index);
-    assert_eq!(a.score, b.score);
-    assert_eq!(a.offset, b.offset);
+    assert_eq!(a.transform().to_rows(), b.transform().to_rows());
+    assert_eq!(a.winner().rotation_index, b.winner().rotation_index);
+    assert_eq!(a.winner().score, b.winner().score);
+    assert_eq!(a.winner().offset, b.winner().offset);
     assert_eq!(a.hypotheses, b.hypotheses);
     assert_eq!(a.runner_up, b.runner_up);
     assert_eq!(a.ambiguity.map(f64::to_bits), b.ambiguity.map(f64::to_bits));
-    assert_eq!(a.geometry, b.geometry);
+    assert_eq!(a.stats.geometry, b.stats.geometry);
 }
 
 #[test]
@@ -166,10 +166,10 @@ fn bit_identical_for_1_2_and_8_threads() {
         };
         let one = run(1);
         assert_eq!(one.hypotheses.len(), 5);
-        assert_eq!(one.threads, 1);
+        assert_eq!(one.stats.threads, 1);
         for threads in [2, 8] {
             let r = run(threads);
-            assert_eq!(r.threads, threads);
+            assert_eq!(r.stats.threads, threads);
             assert_identical(&one, &r);
         }
     }
@@ -185,19 +185,19 @@ fn top_k_hypotheses_are_distinct_and_ordered() {
     };
     let r = coarse_register(&source, &target, limited15(), &cfg).unwrap();
     assert_eq!(r.hypotheses.len(), 6);
-    assert_eq!(r.hypotheses[0].rotation_index, r.rotation_index);
+    assert_eq!(r.hypotheses[0].rotation_index, r.winner().rotation_index);
     for w in r.hypotheses.windows(2) {
         assert!(w[0].match_score >= w[1].match_score);
     }
     for (i, a) in r.hypotheses.iter().enumerate() {
         for b in &r.hypotheses[i + 1..] {
-            assert!(rre(&a.transform, &b.transform) > r.distinct_radius_deg);
+            assert!(rre(&a.transform, &b.transform) > r.stats.distinct_radius_deg);
         }
     }
     let ru = r.runner_up.unwrap();
     assert_eq!(ru, r.hypotheses[1]);
     let amb = r.ambiguity.unwrap();
-    assert!(amb < 1.0 && amb == ru.match_score as f64 / r.match_score as f64);
+    assert!(amb < 1.0 && amb == ru.match_score as f64 / r.winner().match_score as f64);
 }
 
 #[test]
@@ -302,13 +302,13 @@ fn georeferenced_coordinates_give_the_same_answer() {
         &cfg,
     )
     .unwrap();
-    assert_eq!(a.rotation_index, b.rotation_index);
-    assert_eq!(a.score, b.score);
-    let back = far.inverse().compose(&b.transform).compose(&far);
+    assert_eq!(a.winner().rotation_index, b.winner().rotation_index);
+    assert_eq!(a.winner().score, b.winner().score);
+    let back = far.inverse().compose(&b.transform()).compose(&far);
     assert!(
-        rte(&a.transform, &back) < 1e-6,
+        rte(&a.transform(), &back) < 1e-6,
         "{}",
-        rte(&a.transform, &back)
+        rte(&a.transform(), &back)
     );
 }
 
@@ -363,8 +363,8 @@ proptest! {
         let mixed = run(Precision::Mixed);
         let exact = run(Precision::F64);
         assert_identical(&mixed, &exact);
-        prop_assert!(mixed.rescored >= 1);
-        prop_assert_eq!(exact.rescored, 0);
+        prop_assert!(mixed.stats.rescored >= 1);
+        prop_assert_eq!(exact.stats.rescored, 0);
     }
 }
 
@@ -406,17 +406,17 @@ fn coarse_to_fine_finds_the_exhaustive_answer() {
             &with_mode(0.006, c2f, Precision::Mixed, 1),
         )
         .unwrap();
-        assert_eq!(fast.rotation_index, full.rotation_index);
-        assert_eq!(fast.offset, full.offset);
-        assert_eq!(fast.score, full.score);
-        assert_eq!(fast.transform.to_rows(), full.transform.to_rows());
+        assert_eq!(fast.winner().rotation_index, full.winner().rotation_index);
+        assert_eq!(fast.winner().offset, full.winner().offset);
+        assert_eq!(fast.winner().score, full.winner().score);
+        assert_eq!(fast.transform().to_rows(), full.transform().to_rows());
         assert!(
-            fast.scored < set.len() / 4,
+            fast.stats.scored < set.len() / 4,
             "{} of {}",
-            fast.scored,
+            fast.stats.scored,
             set.len()
         );
-        let level = fast.coarse_level.unwrap();
+        let level = fast.stats.coarse_level.unwrap();
         assert_eq!(level.voxel, 0.012);
         assert!(level.kept >= 16);
     }
@@ -436,8 +436,8 @@ fn coarse_to_fine_recovers_grid_rotations() {
             &with_mode(0.08, c2f, Precision::Mixed, 1),
         )
         .unwrap();
-        assert!(rre(&r.transform, &truth) < 1e-6, "seed {seed} k {k}");
-        assert!(rte(&r.transform, &truth) < 1e-9, "seed {seed} k {k}");
+        assert!(rre(&r.transform(), &truth) < 1e-6, "seed {seed} k {k}");
+        assert!(rte(&r.transform(), &truth) < 1e-9, "seed {seed} k {k}");
     }
 }
 

@@ -216,17 +216,17 @@ fn generated_pairs_register() {
     for p in &pairs {
         let s = ggs::io::read_cloud(&p.source, None).unwrap().cloud;
         let t = ggs::io::read_cloud(&p.target, None).unwrap().cloud;
-        let coarse = ggs::search::coarse_register(
+        let coarse = ggs::coarse::coarse_register(
             &s,
             &t,
             &set,
-            &ggs::search::SearchConfig::with_voxel(p.voxel),
+            &ggs::coarse::SearchConfig::with_voxel(p.voxel),
         )
         .unwrap();
         let fine = ggs::refine::refine(
             &s,
             &t,
-            &coarse.transform,
+            &coarse.transform(),
             &ggs::refine::RefineConfig::default(),
         )
         .unwrap();

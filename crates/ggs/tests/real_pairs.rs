@@ -14,7 +14,7 @@ use ggs::manifest::read_manifest;
 use ggs::metrics::{rre, rte};
 use ggs::refine::{refine, RefineConfig};
 use ggs::rotations::RotationSet;
-use ggs::search::{coarse_register, CoarseToFine, SearchConfig, SearchMode};
+use ggs::coarse::{coarse_register, CoarseToFine, SearchConfig, SearchMode};
 use ggs::transform::rotation_angle_deg;
 use nalgebra::Matrix3;
 use std::fmt::Write;
@@ -117,16 +117,16 @@ fn coarse_search_on_real_pairs() {
                 },
             )
             .unwrap();
-            if (fast.rotation_index, fast.offset, fast.score)
-                != (r.rotation_index, r.offset, r.score)
+            if (fast.winner().rotation_index, fast.winner().offset, fast.winner().score)
+                != (r.winner().rotation_index, r.winner().offset, r.winner().score)
             {
                 failures.push(format!(
                     "{set_name} {}: coarse-to-fine picked rotation {} score {}, exhaustive {} score {}",
-                    pair.name, fast.rotation_index, fast.score, r.rotation_index, r.score
+                    pair.name, fast.winner().rotation_index, fast.winner().score, r.winner().rotation_index, r.winner().score
                 ));
             }
             let gt = &pair.ground_truth;
-            let (e_r, e_t) = (rre(&r.transform, gt), rte(&r.transform, gt));
+            let (e_r, e_t) = (rre(&r.transform(), gt), rte(&r.transform(), gt));
             let gt_angle = rotation_angle_deg(&Matrix3::identity(), &gt.rotation);
             let nearest = set
                 .matrices
@@ -162,7 +162,7 @@ fn coarse_search_on_real_pairs() {
                 )
                 .unwrap();
             } else if set_name == "limited15" {
-                let g = refine(&source, &target, &r.transform, &RefineConfig::default()).unwrap();
+                let g = refine(&source, &target, &r.transform(), &RefineConfig::default()).unwrap();
                 let (f_r, f_t) = (rre(&g.transform, gt), rte(&g.transform, gt));
                 let ok = need.is_none_or(|(mr, mt)| f_r < mr && f_t < mt);
                 if !ok {

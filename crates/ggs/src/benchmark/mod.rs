@@ -291,7 +291,7 @@ fn fill_row(row: &mut PairRow, reg: &Registration, truth: &Rigid) {
     row.coarse_ms = reg.timings.search_ms;
     row.verify_ms = reg.timings.verify_ms;
     row.refine_ms = reg.timings.refine_ms;
-    row.score = reg.search.score;
+    row.score = reg.search.winner().score;
     row.ambiguity = reg.search.ambiguity;
     row.coarse_rre = rre(&reg.coarse_transform, truth);
     row.coarse_rte = rte(&reg.coarse_transform, truth);

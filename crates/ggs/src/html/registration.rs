@@ -298,7 +298,7 @@ fn quality_html(reg: &Registration) -> String {
 /// Voxel, rotation set, grids and the coarse-to-fine level.
 fn search_html(reg: &Registration) -> String {
     let r = &reg.search;
-    let g = &r.geometry;
+    let g = &r.stats.geometry;
     let mut s = String::from("<h2>Search</h2><table><tbody>");
     let mut row = |k: &str, v: String| {
         let _ = write!(
@@ -321,15 +321,15 @@ fn search_html(reg: &Registration) -> String {
         "rotations",
         format!(
             "{} ({}), {}",
-            r.rotations,
-            escape(&r.rotation_set),
-            match r.mode {
-                crate::search::SearchMode::Exhaustive => "exhaustive",
-                crate::search::SearchMode::CoarseToFine(_) => "coarse-to-fine",
+            r.stats.rotations,
+            escape(&r.stats.rotation_set),
+            match r.stats.mode {
+                crate::coarse::SearchMode::Exhaustive => "exhaustive",
+                crate::coarse::SearchMode::CoarseToFine(_) => "coarse-to-fine",
             }
         ),
     );
-    row("rotations scored at the voxel", r.scored.to_string());
+    row("rotations scored at the voxel", r.stats.scored.to_string());
     row(
         "grids",
         format!(
@@ -337,7 +337,7 @@ fn search_html(reg: &Registration) -> String {
             g.kernel_dims[0],
             g.kernel_dims[1],
             g.kernel_dims[2],
-            r.target_occupied,
+            r.stats.target_occupied,
             g.fft_len[0],
             g.fft_len[1],
             g.fft_len[2]
@@ -345,9 +345,9 @@ fn search_html(reg: &Registration) -> String {
     );
     row(
         "source points searched",
-        format!("{} of {}", r.searched_points, r.source_points),
+        format!("{} of {}", r.stats.searched_points, r.stats.source_points),
     );
-    if let Some(c) = &r.coarse_level {
+    if let Some(c) = &r.stats.coarse_level {
         row(
             "coarse level",
             format!(
@@ -359,7 +359,7 @@ fn search_html(reg: &Registration) -> String {
             ),
         );
     }
-    row("threads", r.threads.to_string());
+    row("threads", r.stats.threads.to_string());
     s + "</tbody></table>"
 }
 
@@ -373,7 +373,7 @@ fn timings_html(reg: &Registration, read_ms: Option<f64>, total_ms: Option<f64>)
     }
     items.push(("target kernel".into(), st.target_ms));
     items.push(("rotated extents".into(), st.extents_ms));
-    if reg.search.coarse_level.is_some() {
+    if reg.search.stats.coarse_level.is_some() {
         items.push(("coarse level".into(), st.coarse_level_ms));
     }
     items.push(("scoring at the voxel".into(), st.search_ms));
@@ -388,7 +388,7 @@ fn timings_html(reg: &Registration, read_ms: Option<f64>, total_ms: Option<f64>)
         total_ms
             .map(|v| format!(", whole process {} ms", num(v, 1)))
             .unwrap_or_default(),
-        reg.search.threads
+        reg.search.stats.threads
     );
     s
 }

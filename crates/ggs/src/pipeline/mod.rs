@@ -32,7 +32,7 @@ use crate::cloud::Cloud;
 use crate::error::{GgsError, Result};
 use crate::refine::{refine_prepared, PreparedPair, RefineConfig, RefineResult};
 use crate::rotations::{RotationSet, DEFAULT_SET};
-use crate::search::{
+use crate::coarse::{
     auto_voxel, coarse_register, round_2_digits, CoarseToFine, Hypothesis, SearchConfig,
     SearchMode, SearchResult,
 };
@@ -393,7 +393,7 @@ fn register_in_pool(
         }
         None => (
             maybe_polished(source, target, &coarse.hypotheses[0], &search, cfg)?.transform,
-            coarse.transform,
+            coarse.transform(),
             0,
         ),
     };
@@ -512,7 +512,7 @@ fn verify_hypotheses(
         coarse,
         search,
     } = *inputs;
-    let voxel = coarse.voxel;
+    let voxel = coarse.stats.voxel;
     let verifier = verify::Verifier::new(source, target, voxel, spacing, v);
     let cell = v.cell_voxels * voxel;
     let icp = refine_cfg.unwrap_or(RefineConfig {
@@ -555,7 +555,7 @@ fn verify_hypotheses(
         let (pa, pb) = (a.apply(&c), b.apply(&c));
         let moved =
             ((pa[0] - pb[0]).powi(2) + (pa[1] - pb[1]).powi(2) + (pa[2] - pb[2]).powi(2)).sqrt();
-        rotation_angle_deg(&a.rotation, &b.rotation) > coarse.distinct_radius_deg
+        rotation_angle_deg(&a.rotation, &b.rotation) > coarse.stats.distinct_radius_deg
             || moved > DISTINCT_TRANSLATION_VOXELS * voxel
     };
     let runner_up = (0..out.len())
@@ -614,7 +614,7 @@ fn assess(
         if verification.is_none() && a >= ambiguous_ratio {
             warnings.push(format!(
                 "ambiguous: a rotation more than {:.0}° from the winner scores {:.0} % of its match score",
-                coarse.distinct_radius_deg,
+                coarse.stats.distinct_radius_deg,
                 100.0 * a
             ));
         }

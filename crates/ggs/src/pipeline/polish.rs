@@ -14,7 +14,7 @@
 use crate::cloud::Cloud;
 use crate::error::Result;
 use crate::rotations::RotationSet;
-use crate::search::{coarse_register, Hypothesis, SearchConfig, SearchMode};
+use crate::coarse::{coarse_register, Hypothesis, SearchConfig, SearchMode};
 use nalgebra::{Matrix3, Rotation3, Vector3};
 
 /// Parameters of the polish.
@@ -86,7 +86,7 @@ pub fn polish(
             };
             let r = coarse_register(source, target, &set, &local_cfg)?;
             scored += set.len();
-            if r.rotation_index == 0 || r.match_score <= best.match_score {
+            if r.winner().rotation_index == 0 || r.winner().match_score <= best.match_score {
                 break;
             }
             best = Hypothesis {

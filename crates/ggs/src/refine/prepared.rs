@@ -13,7 +13,7 @@ use super::neighbors::PointIndex;
 use crate::cloud::{Cloud, Point};
 use crate::error::{GgsError, Result};
 use crate::transform::Rigid;
-use crate::voxel::cell_centroids;
+use crate::thin::cell_centroids;
 use nalgebra::Vector3;
 use std::sync::OnceLock;
 

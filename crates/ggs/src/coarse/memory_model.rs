@@ -1,8 +1,9 @@
 //! What the large buffers of a search cost, and the error for a search that does not fit.
 
-use crate::correlate::Geometry;
+use super::geometry::Geometry;
 use crate::error::GgsError;
-use crate::{memory, voxel};
+use super::voxel;
+use crate::memory;
 
 /// What the large buffers of a search cost, and which voxel size makes them fit.
 pub(super) struct MemoryModel {

@@ -5,7 +5,6 @@
 //! `floor(p_d / s)`. Occupancy only: how many points fall in a cell does not matter.
 
 use crate::error::{GgsError, Result};
-use rayon::prelude::*;
 
 /// Number of cells along one axis for a shifted extent `extent ≥ 0`: `floor(extent/s) + 1`.
 pub fn axis_cells(extent: f64, voxel: f64) -> usize {
@@ -55,78 +54,6 @@ pub fn cell_fast(p: f64, voxel: f64, inv: f64) -> usize {
     }
 }
 
-/// One point per occupied cell of edge `cell` (cells anchored at the points' minimum): the
-/// mean of the points in it, in increasing cell order (x-major), each mean summed in input
-/// order. Deterministic and independent of the thread count: the points are sorted by (cell,
-/// index), a total order with no ties.
-pub fn cell_centroids(points: &[[f64; 3]], cell: f64) -> Vec<[f64; 3]> {
-    if points.is_empty() {
-        return Vec::new();
-    }
-    let mut min = [f64::INFINITY; 3];
-    let mut max = [f64::NEG_INFINITY; 3];
-    for p in points {
-        for d in 0..3 {
-            min[d] = min[d].min(p[d]);
-            max[d] = max[d].max(p[d]);
-        }
-    }
-    let key = |p: &[f64; 3]| -> [u64; 3] {
-        std::array::from_fn(|d| ((p[d] - min[d]) / cell).floor().max(0.0) as u64)
-    };
-    // Cells per axis fit 21 bits almost always: one u64 key (x, y, z packed, the same order
-    // as the triple) and a u32 index sort fast and small; otherwise the triple.
-    let top = key(&max);
-    if top.iter().all(|&k| k < 1 << 21) && points.len() <= u32::MAX as usize {
-        let mut keyed: Vec<(u64, u32)> = points
-            .par_iter()
-            .enumerate()
-            .map(|(i, p)| {
-                let k = key(p);
-                ((k[0] << 42) | (k[1] << 21) | k[2], i as u32)
-            })
-            .collect();
-        keyed.par_sort_unstable();
-        means_of_runs(points, &keyed, |e| (e.0, e.1 as usize))
-    } else {
-        let mut keyed: Vec<([u64; 3], usize)> = points
-            .iter()
-            .enumerate()
-            .map(|(i, p)| (key(p), i))
-            .collect();
-        keyed.par_sort_unstable();
-        means_of_runs(points, &keyed, |e| (e.0, e.1))
-    }
-}
-
-/// The mean of the points of every run of equal keys in `keyed` (sorted by key, then index).
-fn means_of_runs<E, K: PartialEq>(
-    points: &[[f64; 3]],
-    keyed: &[E],
-    parts: impl Fn(&E) -> (K, usize),
-) -> Vec<[f64; 3]> {
-    let mut out = Vec::new();
-    let mut start = 0;
-    while start < keyed.len() {
-        let k = parts(&keyed[start]).0;
-        let mut end = start + 1;
-        while end < keyed.len() && parts(&keyed[end]).0 == k {
-            end += 1;
-        }
-        let n = (end - start) as f64;
-        let mut sum = [0.0; 3];
-        for e in &keyed[start..end] {
-            let p = &points[parts(e).1];
-            for d in 0..3 {
-                sum[d] += p[d];
-            }
-        }
-        out.push(sum.map(|v| v / n));
-        start = end;
-    }
-    out
-}
-
 /// A dense occupancy grid, x-major C order (z fastest).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Occupancy {
@@ -172,45 +99,6 @@ impl Occupancy {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    /// The plain algorithm: a map from the cell triple to the points' sum and count.
-    fn centroids_by_map(points: &[[f64; 3]], cell: f64) -> Vec<[f64; 3]> {
-        let mut min = [f64::INFINITY; 3];
-        for p in points {
-            for d in 0..3 {
-                min[d] = min[d].min(p[d]);
-            }
-        }
-        let mut cells: std::collections::BTreeMap<[u64; 3], ([f64; 3], usize)> = Default::default();
-        for p in points {
-            let k = std::array::from_fn(|d| ((p[d] - min[d]) / cell).floor().max(0.0) as u64);
-            let e = cells.entry(k).or_insert(([0.0; 3], 0));
-            for d in 0..3 {
-                e.0[d] += p[d];
-            }
-            e.1 += 1;
-        }
-        cells
-            .values()
-            .map(|(s, n)| s.map(|v| v / *n as f64))
-            .collect()
-    }
-
-    #[test]
-    fn cell_centroids_equal_the_plain_algorithm_bit_for_bit() {
-        let mut r = crate::test_rng::uniform(77);
-        let pts: Vec<[f64; 3]> = (0..50_000)
-            .map(|_| [r() * 3.0 - 1.0, r() * 0.5, 100.0 + r() * 2.0])
-            .collect();
-        // Packed keys (cells per axis < 2^21), and the wide path (3e7 cells along x).
-        for cell in [0.05, 0.013, 1e-7] {
-            let (a, b) = (cell_centroids(&pts, cell), centroids_by_map(&pts, cell));
-            assert_eq!(a.len(), b.len(), "{cell}");
-            for (p, q) in a.iter().zip(&b) {
-                assert_eq!(p.map(f64::to_bits), q.map(f64::to_bits), "{cell}");
-            }
-        }
-    }
 
     #[test]
     fn dims_follow_floor_plus_one() {

@@ -1,4 +1,5 @@
-//! FFT cross-correlation of a source occupancy grid with the target kernel (docs/coarse-search.md, step 3).
+//! The CPU correlator: FFT cross-correlation of a source occupancy grid with the target
+//! kernel (docs/method.md, "The score as one correlation").
 //!
 //! With PV = 5 and NV = PPV = −1 the score (docs/coarse-search.md) splits into a constant and an exact
 //! integer *match score*
@@ -26,9 +27,12 @@
 //! ([`CpuCorrelator::approx_best`], [`CpuCorrelator::error_bound`]); the search re-scores in
 //! f64 every rotation whose bound reaches the best exact score, so its picks are the f64 ones.
 
-use crate::grid_view::GridView;
-pub use crate::grid_view::Real;
-use crate::voxel::Occupancy;
+pub use super::correlator::{ApproxBest, BestOffset};
+pub use super::geometry::{fast_len, is_3_smooth, Geometry};
+use super::geometry::X_BLOCK;
+use super::grid_view::GridView;
+pub use super::grid_view::Real;
+use super::voxel::Occupancy;
 use realfft::{ComplexToReal, RealFftPlanner, RealToComplex};
 use rustfft::num_complex::Complex;
 
@@ -38,127 +42,12 @@ use std::time::{Duration, Instant};
 
 type C64 = Complex<f64>;
 
-/// `true` if `n` has no prime factor above 3.
-pub fn is_3_smooth(mut n: usize) -> bool {
-    if n == 0 {
-        return false;
-    }
-    for p in [2, 3] {
-        while n.is_multiple_of(p) {
-            n /= p;
-        }
-    }
-    n == 1
-}
-
-/// Smallest 2·3-smooth length ≥ `min` (and even when `even`). Measured on rustfft 6.4 with
-/// AVX: 64 costs 1.75 ns per f64 element against 2.66 for 56 = 7·8 and 5.0 for 50, so a
-/// longer 3-smooth length is cheaper per line than a shorter one with factors 5 or 7.
-pub fn fast_len(min: usize, even: bool) -> usize {
-    let mut n = min.max(1);
-    loop {
-        if is_3_smooth(n) && (!even || n.is_multiple_of(2)) {
-            return n;
-        }
-        n += 1;
-    }
-}
-
-/// x-planes transformed along y in one batch.
-const X_BLOCK: usize = 8;
-
 /// Round to the nearest integer (ties to even) for |v| < 2^51, without a libm call:
 /// adding and subtracting 1.5·2^52 leaves no fraction bits.
 #[inline(always)]
 fn round_small(v: f64) -> f64 {
     const MAGIC: f64 = 6_755_399_441_055_744.0;
     (v + MAGIC) - MAGIC
-}
-
-/// Sizes of one correlation problem, all in cells.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
-pub struct Geometry {
-    /// Kernel (target) grid dims NR.
-    pub kernel_dims: [usize; 3],
-    /// Central kernel voxel C = ceil(NR/2) − 1 (0-based).
-    pub center: [usize; 3],
-    /// Largest source grid dims NS over all rotations.
-    pub source_max: [usize; 3],
-    /// FFT lengths L ≥ NS_max + floor(NR/2), 3-smooth, z even.
-    pub fft_len: [usize; 3],
-}
-
-impl Geometry {
-    pub fn new(kernel_dims: [usize; 3], source_max: [usize; 3]) -> Self {
-        let mut center = [0; 3];
-        let mut fft_len = [0; 3];
-        for d in 0..3 {
-            center[d] = kernel_dims[d].div_ceil(2) - 1;
-            let need = source_max[d].max(kernel_dims[d]) + kernel_dims[d] / 2;
-            fft_len[d] = fast_len(need, d == 2);
-        }
-        Geometry {
-            kernel_dims,
-            center,
-            source_max,
-            fft_len,
-        }
-    }
-
-    /// Nominal floating-point operations of one correlation for a source grid of dims `ns`,
-    /// as the transforms are pruned here: `5·L·log2 L` per complex transform of length `L`,
-    /// `2.5·L·log2 L` per real one (the usual FFT convention: the count of a radix-2
-    /// algorithm, whatever the algorithm used), 6 per complex product.
-    ///
-    /// Forward: `nsx·nsy` real transforms along z, `nsx·kz` along y; `Ly·kz` forward and
-    /// inverse along x and `Lx·Ly·kz` products; inverse: `nsx·kz` along y, `nsx·nsy` real
-    /// along z.
-    pub fn flops(&self, ns: [usize; 3]) -> f64 {
-        let c = |l: usize| 5.0 * l as f64 * (l as f64).log2();
-        let [lx, ly, lz] = self.fft_len;
-        let kz = self.kz() as f64;
-        let (nsx, nsy) = (ns[0] as f64, ns[1] as f64);
-        let z = 2.0 * nsx * nsy * 0.5 * c(lz);
-        let y = 2.0 * nsx * kz * c(ly);
-        let x = 2.0 * ly as f64 * kz * c(lx) + 6.0 * (lx * ly) as f64 * kz;
-        z + y + x
-    }
-
-    /// Complex bins along z of the real transform: `L_z/2 + 1`.
-    pub fn kz(&self) -> usize {
-        self.fft_len[2] / 2 + 1
-    }
-
-    /// Bytes of the kernel spectrum (shared by all workers) with `real_bytes` per real
-    /// sample (4 for f32, 8 for f64), saturating at `u64::MAX`.
-    pub fn kernel_bytes(&self, real_bytes: u64) -> u64 {
-        saturate(
-            self.fft_len[0] as u128
-                * self.fft_len[1] as u128
-                * self.kz() as u128
-                * 2
-                * real_bytes as u128,
-        )
-    }
-
-    /// Bytes of one worker's buffers with `real_bytes` per real sample, saturating at
-    /// `u64::MAX`.
-    pub fn workspace_bytes(&self, real_bytes: u64) -> u64 {
-        let [lx, ly, lz] = self.fft_len.map(|v| v as u128);
-        let kz = self.kz() as u128;
-        let ax = self.source_max[0].max(self.kernel_dims[0]) as u128;
-        let ay = self.source_max[1].max(self.kernel_dims[1]) as u128;
-        let real = ax * ay * lz;
-        let zspec = ax * ay * kz * 2;
-        let grid = ly * kz * lx * 2;
-        let slab = X_BLOCK as u128 * kz * ly * 2;
-        saturate((real + zspec + grid + slab + 8 * (lx + ly + lz)) * real_bytes as u128)
-    }
-}
-
-/// `v` as u64, or `u64::MAX` when it does not fit.
-fn saturate(v: u128) -> u64 {
-    u64::try_from(v).unwrap_or(u64::MAX)
 }
 
 /// CPU correlator: FFT plans and the conjugate kernel spectrum of one target, shared by all
@@ -236,35 +125,6 @@ impl<T: Real> Workspace<T> {
     pub fn set(&mut self, i: usize, j: usize, k: usize) {
         let lz = self.rrow.len();
         self.real[(i * self.ay + j) * lz + k] = T::one();
-    }
-}
-
-/// Best offset of one rotation: its match score `m` and the offset `a` (cells).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct BestOffset {
-    pub match_score: i64,
-    pub offset: [usize; 3],
-}
-
-/// Approximate best of one rotation from a reduced-precision correlation: the largest
-/// computed output and a bound on how far the exact best match score can be from it,
-/// `|max_a m(a) − value| ≤ error_bound`.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct ApproxBest {
-    pub value: f64,
-    pub error_bound: f64,
-    /// Offset of `value` (the exact best may sit elsewhere when several are close).
-    pub offset: [usize; 3],
-}
-
-impl ApproxBest {
-    /// Smallest possible exact best match score.
-    pub fn lower(&self) -> f64 {
-        self.value - self.error_bound
-    }
-    /// Largest possible exact best match score.
-    pub fn upper(&self) -> f64 {
-        self.value + self.error_bound
     }
 }
 
@@ -754,37 +614,6 @@ mod tests {
             }
         }
         c.all_scores(&mut ws)
-    }
-
-    #[test]
-    fn smooth_lengths() {
-        assert_eq!(fast_len(11, false), 12);
-        assert_eq!(fast_len(13, true), 16);
-        assert_eq!(fast_len(97, false), 108);
-        assert_eq!(fast_len(55, true), 64);
-        assert_eq!(fast_len(25, false), 27);
-        assert_eq!(fast_len(27, true), 32);
-        assert_eq!(fast_len(1, true), 2);
-        assert!(is_3_smooth(2 * 2 * 3 * 3 * 3));
-        assert!(!is_3_smooth(2 * 3 * 5));
-        assert!(!is_3_smooth(0));
-    }
-
-    #[test]
-    fn byte_counts_saturate_instead_of_wrapping() {
-        let g = Geometry::new([9_000_000; 3], [9_000_000; 3]);
-        assert_eq!(g.kernel_bytes(8), u64::MAX);
-        assert_eq!(g.workspace_bytes(4), u64::MAX);
-    }
-
-    #[test]
-    fn center_voxel_matches_paper() {
-        let g = Geometry::new([4, 5, 1], [3, 3, 3]);
-        assert_eq!(g.center, [1, 2, 0]);
-        for d in 0..3 {
-            assert!(g.fft_len[d] >= g.source_max[d] + g.kernel_dims[d] / 2);
-        }
-        assert_eq!(g.fft_len[2] % 2, 0);
     }
 
     proptest! {

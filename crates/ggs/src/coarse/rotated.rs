@@ -7,8 +7,8 @@
 //! Cluster order also keeps voxel writes local. Occupancy does not depend on point order.
 
 use crate::cloud::{Cloud, Point};
-pub use crate::grid_view::GridView;
-use crate::grid_view::Real;
+pub use super::grid_view::GridView;
+use super::grid_view::Real;
 
 /// `row · p`, the one expression used for every rotated coordinate.
 #[inline(always)]
@@ -160,7 +160,7 @@ impl RotatableCloud {
     ///
     /// `min` must be the per-axis minimum of `R·p` computed by [`RotatableCloud::range`] (the
     /// same float expression, so every coordinate is ≥ 0) and the grid must hold every cell.
-    /// Bit-identical to [`voxel::cell_fast`](crate::voxel::cell_fast) of [`dot_row`] per point:
+    /// Bit-identical to [`voxel::cell_fast`](super::voxel::cell_fast) of [`dot_row`] per point:
     /// blocks of 16 points take the floor as `round(v) − [round(v) > v]` (exact for
     /// `0 ≤ v < 2^51`) and the flat index in f64 (exact below 2^53) so the compiler can keep
     /// the arithmetic in vector registers; a block with a coordinate within the tolerance
@@ -284,9 +284,9 @@ impl RotatableCloud {
         sy: usize,
     ) {
         let p = &self.points[k];
-        let i = crate::voxel::cell_fast(dot_row(&r[0], p) - min[0], s, inv);
-        let j = crate::voxel::cell_fast(dot_row(&r[1], p) - min[1], s, inv);
-        let l = crate::voxel::cell_fast(dot_row(&r[2], p) - min[2], s, inv);
+        let i = super::voxel::cell_fast(dot_row(&r[0], p) - min[0], s, inv);
+        let j = super::voxel::cell_fast(dot_row(&r[1], p) - min[1], s, inv);
+        let l = super::voxel::cell_fast(dot_row(&r[2], p) - min[2], s, inv);
         grid[i * sx + j * sy + l] = T::one();
     }
 }

@@ -1,0 +1,163 @@
+//! The seam between the search and the hardware: a [`Backend`] plans a [`Correlator`] for
+//! one target kernel and FFT geometry, and the correlator scores batches of rotated sources.
+//!
+//! The search (`coarse_register_with`) only talks to these two traits: which rotations to
+//! score, at which voxel, exactly or approximately. A GPU backend implements them without
+//! touching the search; the CPU backend is [`CpuBackend`] (`passes.rs`).
+//!
+//! The contract a backend must keep, which the search's exactness rests on:
+//! - [`Correlator::exact`] returns, for each rotation, the largest match score over all
+//!   offsets as the exact integer it is, and the lowest offset in x-major C order that
+//!   reaches it (docs/method.md, "Exact integers");
+//! - [`Correlator::approx`] returns a value and a bound with
+//!   `|exact best − value| ≤ error_bound` (docs/method.md, "Reduced precision");
+//! - results come back in the order of the indices asked for, and do not depend on how
+//!   the work was spread over threads or devices.
+
+use super::extents::RotatedBox;
+use super::geometry::Geometry;
+use super::rotated::RotatableCloud;
+use super::voxel::Occupancy;
+use crate::error::Result;
+use std::sync::atomic::AtomicBool;
+use std::sync::Arc;
+use std::time::Duration;
+
+pub use super::passes::CpuBackend;
+
+/// Best offset of one rotation: its match score `m` and the offset `a` (cells).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct BestOffset {
+    pub match_score: i64,
+    pub offset: [usize; 3],
+}
+
+/// Approximate best of one rotation from a reduced-precision correlation: the largest
+/// computed output and a bound on how far the exact best match score can be from it,
+/// `|max_a m(a) − value| ≤ error_bound`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ApproxBest {
+    pub value: f64,
+    pub error_bound: f64,
+    /// Offset of `value` (the exact best may sit elsewhere when several are close).
+    pub offset: [usize; 3],
+}
+
+impl ApproxBest {
+    /// Smallest possible exact best match score.
+    pub fn lower(&self) -> f64 {
+        self.value - self.error_bound
+    }
+    /// Largest possible exact best match score.
+    pub fn upper(&self) -> f64 {
+        self.value + self.error_bound
+    }
+}
+
+impl From<BestOffset> for ApproxBest {
+    /// An exact score as an interval of width 0.
+    fn from(b: BestOffset) -> Self {
+        ApproxBest {
+            value: b.match_score as f64,
+            error_bound: 0.0,
+            offset: b.offset,
+        }
+    }
+}
+
+/// Which scores a correlator is planned for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Scores {
+    /// Approximate only: the ranking of a coarse level.
+    Approximate,
+    /// Approximate first, exact for the rotations the bound cannot settle.
+    Mixed,
+    /// Exact only.
+    Exact,
+}
+
+/// Work done by a pass, summed over workers: CPU time per stage, the exactness check and
+/// the nominal FLOPs. A backend that cannot split its time reports what it has.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct StageTimes {
+    pub voxelize: Duration,
+    pub forward: Duration,
+    pub product: Duration,
+    pub inverse: Duration,
+    /// Largest distance of an exact-path output from its integer.
+    pub max_rounding_error: f64,
+    /// Nominal FFT floating-point operations ([`Geometry::flops`]).
+    pub flops: f64,
+}
+
+impl StageTimes {
+    pub fn add(&mut self, o: &StageTimes) {
+        self.voxelize += o.voxelize;
+        self.forward += o.forward;
+        self.product += o.product;
+        self.inverse += o.inverse;
+        self.max_rounding_error = self.max_rounding_error.max(o.max_rounding_error);
+        self.flops += o.flops;
+    }
+}
+
+/// The rotated copies of the source a pass scores: rotation `k` is the centred `cloud`
+/// rotated by `rows[k]`, shifted so that `boxes[k].min` is the origin, voxelized at `voxel`.
+#[derive(Clone, Copy)]
+pub struct RotatedSources<'a> {
+    pub cloud: &'a RotatableCloud,
+    pub rows: &'a [[[f64; 3]; 3]],
+    /// Extents per rotation index (entries not asked for are not read).
+    pub boxes: &'a [Option<RotatedBox>],
+    pub voxel: f64,
+}
+
+/// How a pass runs: the threads it may use, when it stops, whom it tells.
+#[derive(Clone, Copy)]
+pub struct PassControl<'a> {
+    pub pool: &'a rayon::ThreadPool,
+    pub threads: usize,
+    /// Set from another thread to stop ([`GgsError::Cancelled`](crate::GgsError::Cancelled)).
+    pub cancel: Option<&'a Arc<AtomicBool>>,
+    /// Told the number of rotations scored so far, after each.
+    pub progress: Option<&'a (dyn Fn(usize) + Send + Sync)>,
+}
+
+/// A planned correlation against one target kernel at one geometry.
+pub trait Correlator: Sync {
+    /// The geometry it was planned for (every source grid fits `source_max`).
+    fn geometry(&self) -> &Geometry;
+    /// Cells of the kernel grid, `|K|`.
+    fn kernel_cells(&self) -> i64;
+    /// Occupied kernel cells, `n_k`.
+    fn kernel_occupied(&self) -> i64;
+    /// Exact best offsets of the rotations `indices`, in their order.
+    fn exact(
+        &self,
+        ctl: &PassControl<'_>,
+        src: &RotatedSources<'_>,
+        indices: &[usize],
+    ) -> Result<(Vec<BestOffset>, StageTimes)>;
+    /// Approximate bests with proven bounds, in the order of `indices`. The default is the
+    /// exact scores as intervals of width 0, for a backend with no faster approximate path.
+    fn approx(
+        &self,
+        ctl: &PassControl<'_>,
+        src: &RotatedSources<'_>,
+        indices: &[usize],
+    ) -> Result<(Vec<ApproxBest>, StageTimes)> {
+        let (exact, times) = self.exact(ctl, src, indices)?;
+        Ok((exact.into_iter().map(ApproxBest::from).collect(), times))
+    }
+}
+
+/// Makes correlators: the one thing the search needs to know about the hardware.
+pub trait Backend: Sync {
+    /// Plans a correlator for `kernel` (dims `geo.kernel_dims`) with the scores `scores`.
+    fn plan(
+        &self,
+        geo: Geometry,
+        kernel: &Occupancy,
+        scores: Scores,
+    ) -> Result<Box<dyn Correlator>>;
+}

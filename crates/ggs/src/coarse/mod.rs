@@ -1,0 +1,58 @@
+//! The coarse search of Greedy Grid Search (docs/method.md): every rotation of a set, the
+//! best translation of each by FFT correlation, the best (rotation, translation) overall.
+//!
+//! The stages, in the order one search runs them ([`coarse_register`]):
+//!
+//! 1. [`source`]: the source's representatives (dense clouds) and [`rotated::RotatableCloud`],
+//!    the centred source prepared for many rotations;
+//! 2. [`extents`]: the exact box of every rotated copy, hence its grid and the FFT
+//!    [`Geometry`](cpu::Geometry);
+//! 3. [`voxel`]: the target's occupancy (the kernel) and the voxel arithmetic both sides share;
+//! 4. [`correlator`]: the [`Correlator`] trait a backend implements, with the CPU backend
+//!    [`cpu`] (FFT plans, kernel spectrum, per-thread workspaces, f32 and f64);
+//! 5. [`passes`]: a scoring pass over a list of rotations on a backend;
+//! 6. [`levels`]: the coarse level of a coarse-to-fine search (rank at a coarser voxel, keep
+//!    the best and their neighbours);
+//! 7. [`selection`]: the exact selection (f64 re-scoring where the f32 bound requires) and the
+//!    distinct hypotheses;
+//! 8. [`result`]: the hypotheses, the statistics and the timings.
+//!
+//! Determinism: each rotation is scored independently into its own slot and the winner is
+//! chosen by a sequential scan, so the result is bit-identical whatever the thread count.
+//! Ties go to the lowest rotation index, then the lowest offset in x-major C order; scores
+//! are exact integers, so float noise never decides a tie.
+//!
+//! Precision ([`Precision::Mixed`], the default): rotations are scored in f32 with a proven
+//! error bound and every rotation whose bound could reach the winner (or a top-k hypothesis,
+//! or the runner-up) is re-scored in f64, so the picks are the all-f64 ones
+//! ([`selection::exact_best`]).
+//!
+//! Modes: [`SearchMode::Exhaustive`] scores every rotation at the voxel size;
+//! [`SearchMode::CoarseToFine`] ranks every rotation at a coarser voxel first and scores at the
+//! voxel size only the best and their neighbours, in rounds that look further while the
+//! winner ranks in the lower half of what was kept (docs/performance.md).
+
+pub mod config;
+pub mod correlator;
+pub mod cpu;
+pub mod geometry;
+pub mod extents;
+mod fine;
+pub mod grid_view;
+pub mod levels;
+mod memory_model;
+pub mod passes;
+mod register;
+pub mod result;
+pub mod rotated;
+pub mod selection;
+pub mod source;
+pub mod voxel;
+
+pub use config::{
+    auto_voxel, round_2_digits, CoarseToFine, Precision, ProgressFn, SearchConfig, SearchMode,
+};
+pub use correlator::{Backend, Correlator, CpuBackend, Scores};
+pub use register::{coarse_register, coarse_register_with};
+pub use result::{CoarseLevel, Hypothesis, SearchResult, SearchStats, Timings};
+pub use source::{representatives, MIN_POINTS_PER_REPRESENTATIVE, REPRESENTATIVE_DIVISIONS};

@@ -1,0 +1,219 @@
+//! The CPU backend: scoring passes over a list of rotations on a thread pool.
+//!
+//! A pass voxelizes each rotated source into a worker's workspace and correlates it with
+//! [`CpuCorrelator`]. Work is handed out by an atomic counter and every result lands in the
+//! slot of its rotation, so a pass gives the same results whatever the thread count.
+//! Approximate scores are f32 correlations with their proven bound
+//! ([`CpuCorrelator::error_bound`]); exact ones are f64 correlations rounded to the integers
+//! they equal.
+
+use super::correlator::{
+    ApproxBest, Backend, BestOffset, Correlator, PassControl, RotatedSources, Scores, StageTimes,
+};
+use super::cpu::{CpuCorrelator, Real, Workspace};
+use super::geometry::Geometry;
+use super::voxel::Occupancy;
+use crate::error::{GgsError, Result};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::Mutex;
+use std::time::{Duration, Instant};
+
+/// The CPU backend: f64 FFT correlations (exact), f32 ones with a bound (approximate).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct CpuBackend;
+
+/// The correlators of one plan: f64 for exact scores, f32 for approximate ones.
+pub enum CpuPlan {
+    Approximate(CpuCorrelator<f32>),
+    Mixed(CpuCorrelator<f64>, CpuCorrelator<f32>),
+    Exact(CpuCorrelator<f64>),
+}
+
+impl Backend for CpuBackend {
+    fn plan(
+        &self,
+        geo: Geometry,
+        kernel: &Occupancy,
+        scores: Scores,
+    ) -> Result<Box<dyn Correlator>> {
+        Ok(Box::new(match scores {
+            Scores::Approximate => CpuPlan::Approximate(CpuCorrelator::new(geo, kernel)),
+            Scores::Mixed => {
+                let exact = CpuCorrelator::<f64>::new(geo, kernel);
+                let approx = CpuCorrelator::<f32>::from_f64(&exact);
+                CpuPlan::Mixed(exact, approx)
+            }
+            Scores::Exact => CpuPlan::Exact(CpuCorrelator::new(geo, kernel)),
+        }))
+    }
+}
+
+impl CpuPlan {
+    /// `(|K|, n_k, geometry)`, the same in every correlator of the plan.
+    fn kernel(&self) -> (i64, i64, &Geometry) {
+        match self {
+            CpuPlan::Approximate(c) | CpuPlan::Mixed(_, c) => {
+                (c.kernel_cells, c.kernel_occupied, c.geometry())
+            }
+            CpuPlan::Exact(c) => (c.kernel_cells, c.kernel_occupied, c.geometry()),
+        }
+    }
+}
+
+impl Correlator for CpuPlan {
+    fn geometry(&self) -> &Geometry {
+        self.kernel().2
+    }
+
+    fn kernel_cells(&self) -> i64 {
+        self.kernel().0
+    }
+
+    fn kernel_occupied(&self) -> i64 {
+        self.kernel().1
+    }
+
+    fn exact(
+        &self,
+        ctl: &PassControl<'_>,
+        src: &RotatedSources<'_>,
+        indices: &[usize],
+    ) -> Result<(Vec<BestOffset>, StageTimes)> {
+        match self {
+            CpuPlan::Mixed(c, _) | CpuPlan::Exact(c) => {
+                run_pass(ctl, src, c, indices, |c, ws| c.best_offset(ws))
+            }
+            CpuPlan::Approximate(_) => Err(GgsError::param(
+                "scores",
+                "this correlator was planned for approximate scores only",
+            )),
+        }
+    }
+
+    fn approx(
+        &self,
+        ctl: &PassControl<'_>,
+        src: &RotatedSources<'_>,
+        indices: &[usize],
+    ) -> Result<(Vec<ApproxBest>, StageTimes)> {
+        match self {
+            CpuPlan::Approximate(c) | CpuPlan::Mixed(_, c) => {
+                run_pass(ctl, src, c, indices, |c, ws| c.approx_best(ws))
+            }
+            CpuPlan::Exact(c) => {
+                let (exact, times) = run_pass(ctl, src, c, indices, |c, ws| c.best_offset(ws))?;
+                Ok((exact.into_iter().map(ApproxBest::from).collect(), times))
+            }
+        }
+    }
+}
+
+/// Score the rotations `indices` with `score` (one call per rotation, in a worker's
+/// workspace holding that rotation's source grid). Results are in the order of `indices`.
+fn run_pass<T: Real, R: Send + Copy>(
+    ctl: &PassControl<'_>,
+    src: &RotatedSources<'_>,
+    corr: &CpuCorrelator<T>,
+    indices: &[usize],
+    score: impl Fn(&CpuCorrelator<T>, &mut Workspace<T>) -> R + Sync,
+) -> Result<(Vec<R>, StageTimes)> {
+    let next = AtomicUsize::new(0);
+    let done = AtomicUsize::new(0);
+    let slots: Mutex<Vec<Option<R>>> = Mutex::new(vec![None; indices.len()]);
+    let stats: Mutex<StageTimes> = Mutex::new(StageTimes::default());
+    let cancelled = AtomicBool::new(false);
+    let s = src.voxel;
+    let workers = ctl.threads.min(indices.len()).max(1);
+    ctl.pool.scope(|scope| {
+        for _ in 0..workers {
+            scope.spawn(|_| {
+                let mut ws = corr.workspace();
+                let mut t_vox = Duration::ZERO;
+                let mut flops = 0.0;
+                let mut local: Vec<(usize, R)> = Vec::new();
+                loop {
+                    if ctl.cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
+                        cancelled.store(true, Ordering::Relaxed);
+                        break;
+                    }
+                    let slot = next.fetch_add(1, Ordering::Relaxed);
+                    if slot >= indices.len() {
+                        break;
+                    }
+                    let k = indices[slot];
+                    let tv = Instant::now();
+                    let b = src.boxes[k].expect("extents computed for every scored rotation");
+                    ws.begin(b.dims);
+                    src
+                        .cloud
+                        .voxelize(&src.rows[k], &b.min, s, ws.grid_mut());
+                    t_vox += tv.elapsed();
+                    flops += corr.geometry().flops(b.dims);
+                    local.push((slot, score(corr, &mut ws)));
+                    let n = done.fetch_add(1, Ordering::Relaxed) + 1;
+                    if let Some(p) = ctl.progress {
+                        p(n);
+                    }
+                }
+                let mut sl = slots
+                    .lock()
+                    .expect("no worker panics while holding the lock");
+                for (slot, r) in local {
+                    sl[slot] = Some(r);
+                }
+                let mut st = stats
+                    .lock()
+                    .expect("no worker panics while holding the lock");
+                st.add(&StageTimes {
+                    voxelize: t_vox,
+                    forward: ws.t_forward,
+                    product: ws.t_product,
+                    inverse: ws.t_inverse,
+                    max_rounding_error: ws.max_rounding_error,
+                    flops,
+                });
+            });
+        }
+    });
+    if cancelled.load(Ordering::Relaxed) {
+        return Err(GgsError::Cancelled);
+    }
+    let results = slots
+        .into_inner()
+        .expect("workers finished")
+        .into_iter()
+        .map(|r| r.expect("every rotation scored"))
+        .collect();
+    Ok((results, stats.into_inner().expect("workers finished")))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn stage_times_add_up() {
+        let ms = Duration::from_millis;
+        let mut a = StageTimes {
+            voxelize: ms(1),
+            forward: ms(2),
+            product: ms(3),
+            inverse: ms(4),
+            max_rounding_error: 1e-9,
+            flops: 10.0,
+        };
+        a.add(&StageTimes {
+            voxelize: ms(10),
+            forward: ms(20),
+            product: ms(30),
+            inverse: ms(40),
+            max_rounding_error: 1e-12,
+            flops: 5.0,
+        });
+        assert_eq!(
+            (a.voxelize, a.forward, a.product, a.inverse),
+            (ms(11), ms(22), ms(33), ms(44))
+        );
+        assert_eq!((a.max_rounding_error, a.flops), (1e-9, 15.0));
+    }
+}

@@ -1,0 +1,238 @@
+//! One coarse search, step by step: check the request, prepare both clouds, rank at the
+//! coarse level (coarse-to-fine), score at the voxel in rounds, select the distinct
+//! hypotheses, and turn each argmax into a transform (docs/method.md, "From an argmax to a
+//! transform").
+
+use super::config::{SearchConfig, SearchMode};
+use super::correlator::{Backend, CpuBackend, PassControl, RotatedSources};
+use super::extents::{rows, target_kernel, RotatedBox};
+use super::fine::FineLevel;
+use super::geometry::Geometry;
+use super::levels::coarse_candidates;
+use super::memory_model::MemoryModel;
+use super::result::{SearchResult, Timings};
+use super::rotated::RotatableCloud;
+use super::selection::Tally;
+use super::source::representatives;
+use super::voxel;
+use crate::cloud::{Cloud, Point};
+use crate::error::{GgsError, Result};
+use crate::memory;
+use crate::rotations::RotationSet;
+use std::time::{Duration, Instant};
+
+fn ms(d: Duration) -> f64 {
+    d.as_secs_f64() * 1e3
+}
+
+/// Run the coarse search of `source` against `target` over `set` on the CPU.
+pub fn coarse_register(
+    source: &Cloud,
+    target: &Cloud,
+    set: &RotationSet,
+    cfg: &SearchConfig,
+) -> Result<SearchResult> {
+    coarse_register_with(&CpuBackend, source, target, set, cfg)
+}
+
+/// Run the coarse search on the correlators of `backend`. The picks depend on the backend
+/// only through its scores, which the [`Correlator`] contract fixes: every backend that
+/// keeps it returns the same result.
+pub fn coarse_register_with(
+    backend: &dyn Backend,
+    source: &Cloud,
+    target: &Cloud,
+    set: &RotationSet,
+    cfg: &SearchConfig,
+) -> Result<SearchResult> {
+    let t_start = Instant::now();
+    validate(source, target, set, cfg)?;
+    let threads = crate::threads::resolve(cfg.threads);
+    let (pool, _) = crate::threads::pool(threads)?;
+    let prep = Prepared::new(source, target, set, cfg, threads)?;
+    let ctl = PassControl {
+        pool: &pool,
+        threads,
+        cancel: cfg.cancel.as_ref(),
+        progress: None,
+    };
+    let mut tally = Tally::default();
+    let t_coarse = Instant::now();
+    let mut coarse_level = match &cfg.mode {
+        SearchMode::Exhaustive => None,
+        SearchMode::CoarseToFine(c) => {
+            let with_progress = PassControl {
+                progress: cfg.progress.as_deref(),
+                ..ctl
+            };
+            let (level, times) = coarse_candidates(backend, &with_progress, &prep, target, set, cfg, c)?;
+            tally.times.add(&times);
+            Some(level)
+        }
+    };
+    let coarse_level_ms = ms(t_coarse.elapsed());
+    let t_kernel = Instant::now();
+    let kernel = target_kernel(target, prep.target_min, cfg.voxel)?;
+    let mut fine = FineLevel::new(&prep, kernel, ms(t_kernel.elapsed()));
+    let progress = match cfg.mode {
+        SearchMode::Exhaustive => cfg.progress.as_deref(),
+        SearchMode::CoarseToFine(_) => None,
+    };
+    let t_search = Instant::now();
+    let winner = fine.rounds(
+        backend,
+        &PassControl { progress, ..ctl },
+        set,
+        cfg,
+        coarse_level.as_mut(),
+        &mut tally,
+    )?;
+    let picks = fine.distinct(&ctl, set, cfg, winner, &mut tally)?;
+    let search_ms = ms(t_search.elapsed());
+    let timings = Timings {
+        target_ms: fine.target_ms,
+        extents_ms: fine.extents_ms,
+        search_ms,
+        total_ms: 0.0,
+        cpu_voxelize_ms: ms(tally.times.voxelize),
+        cpu_forward_ms: ms(tally.times.forward),
+        cpu_product_ms: ms(tally.times.product),
+        cpu_inverse_ms: ms(tally.times.inverse),
+        coarse_level_ms,
+        rescore_ms: ms(tally.rescore_time),
+    };
+    let mut result = fine.result(source, target, set, cfg, picks, coarse_level, &tally, timings)?;
+    result.timings.total_ms = ms(t_start.elapsed());
+    Ok(result)
+}
+
+/// Refuses a bad voxel, `top_k = 0`, an empty set, bad coarse-to-fine parameters and empty
+/// clouds, before any work.
+fn validate(source: &Cloud, target: &Cloud, set: &RotationSet, cfg: &SearchConfig) -> Result<()> {
+    let s = cfg.voxel;
+    if !(s.is_finite() && s > 0.0) {
+        return Err(GgsError::param(
+            "voxel",
+            format!("must be a positive number, got {s}"),
+        ));
+    }
+    if cfg.top_k == 0 {
+        return Err(GgsError::param("top_k", "must be at least 1"));
+    }
+    if set.is_empty() {
+        return Err(GgsError::param("rotations", "the rotation set is empty"));
+    }
+    if let SearchMode::CoarseToFine(c) = &cfg.mode {
+        c.validate()?;
+    }
+    source.ensure_not_empty("source")?;
+    target.ensure_not_empty("target")?;
+    Ok(())
+}
+
+/// Both clouds made ready for the search: the target's box and kernel dims, the centred
+/// source (or its representatives), the rotations as rows, the memory model and budget.
+pub(super) struct Prepared {
+    /// Min corner of the target's box: the kernel's origin.
+    pub target_min: Point,
+    /// Kernel dims at the voxel.
+    pub kernel_dims: [usize; 3],
+    pub source: RotatableCloud,
+    pub rows: Vec<[[f64; 3]; 3]>,
+    pub sizes: MemoryModel,
+    pub budget: u64,
+    pub voxel: f64,
+}
+
+impl Prepared {
+    fn new(
+        source: &Cloud,
+        target: &Cloud,
+        set: &RotationSet,
+        cfg: &SearchConfig,
+        threads: usize,
+    ) -> Result<Self> {
+        let s = cfg.voxel;
+        let budget = cfg.max_memory.unwrap_or_else(memory::default_budget);
+        let tb = target.aabb().ok_or_else(|| GgsError::EmptyCloud {
+            what: "target".into(),
+            detail: String::new(),
+        })?;
+        let kernel_dims = voxel::grid_dims(tb.extent(), s)?;
+        let reps = representatives(source, s);
+        let rc = RotatableCloud::new(reps.as_ref().unwrap_or(source));
+        let radius = rc
+            .points
+            .iter()
+            .map(|p| (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt())
+            .fold(0.0, f64::max);
+        let sizes = MemoryModel {
+            target_extent: tb.extent(),
+            source_radius: radius,
+            threads,
+            points: rc.points.len(),
+        };
+        let early = Geometry::new(kernel_dims, [1, 1, 1]);
+        let early_bytes = sizes.bytes(&early);
+        if early_bytes > budget {
+            return Err(sizes.error(&early, early_bytes, budget, s));
+        }
+        Ok(Prepared {
+            target_min: tb.min,
+            kernel_dims,
+            source: rc,
+            rows: set.matrices.iter().map(rows).collect(),
+            sizes,
+            budget,
+            voxel: s,
+        })
+    }
+
+    /// The rotated sources with the extents `boxes`.
+    pub fn sources<'a>(&'a self, boxes: &'a [Option<RotatedBox>]) -> RotatedSources<'a> {
+        RotatedSources {
+            cloud: &self.source,
+            rows: &self.rows,
+            boxes,
+            voxel: self.voxel,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::transform::Rigid;
+    use nalgebra::Vector3;
+
+    /// A plane of `n` × `n` points `h` apart, slightly wavy.
+    fn plane(n: usize, h: f64) -> Cloud {
+        Cloud::new(
+            (0..n * n)
+                .map(|i| {
+                    let (x, y) = ((i % n) as f64 * h, (i / n) as f64 * h);
+                    [x, y, 0.1 * (3.0 * x).sin() * y]
+                })
+                .collect(),
+        )
+    }
+
+    #[test]
+    fn the_search_on_representatives_finds_the_rotation_of_a_dense_pair() {
+        let set = RotationSet::named("limited15").unwrap();
+        let source = plane(300, 0.005);
+        let k = 700;
+        let truth = Rigid::new(set.matrices[k], Vector3::new(0.3, -0.2, 0.1));
+        let target = source.transformed(&truth);
+        let cfg = SearchConfig::with_voxel(0.15);
+        let r = coarse_register(&source, &target, &set, &cfg).unwrap();
+        assert!(
+            r.stats.searched_points * 4 <= r.stats.source_points,
+            "{}",
+            r.stats.searched_points
+        );
+        assert_eq!(r.winner().rotation_index, k);
+        assert!((r.transform().translation - truth.translation).norm() < 0.15);
+    }
+}
+

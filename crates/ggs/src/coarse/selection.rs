@@ -1,0 +1,185 @@
+//! The exact selection that makes reduced precision safe, and the distinct hypotheses.
+//!
+//! A rotation scored approximately has an interval `[value − bound, value + bound]` that
+//! holds its exact best match score. The best eligible rotation is found by re-scoring
+//! exactly every rotation whose interval reaches the best exact score known (or the best
+//! lower end), until none is left: a rotation never re-scored has an exact score strictly
+//! below the winner's, so the pick (ties to the lowest index) is the one an all-exact search
+//! makes (docs/method.md, "Reduced precision").
+
+use super::correlator::{ApproxBest, BestOffset, Correlator, PassControl, RotatedSources, StageTimes};
+use crate::error::Result;
+use std::time::{Duration, Instant};
+
+/// Work counters of a search: stage times, and the exact re-scoring.
+#[derive(Debug, Default)]
+pub struct Tally {
+    pub times: StageTimes,
+    pub rescored: usize,
+    pub rescore_time: Duration,
+}
+
+/// Re-score the rotations `pending` exactly into `scores.exact`.
+pub fn rescore_exact(
+    corr: &dyn Correlator,
+    ctl: &PassControl<'_>,
+    src: &RotatedSources<'_>,
+    pending: &[usize],
+    scores: &mut LevelScores,
+    tally: &mut Tally,
+) -> Result<()> {
+    let t = Instant::now();
+    let (found, st) = corr.exact(ctl, src, pending)?;
+    tally.times.add(&st);
+    for (&k, b) in pending.iter().zip(found) {
+        scores.exact[k] = Some(b);
+    }
+    tally.rescored += pending.len();
+    tally.rescore_time += t.elapsed();
+    Ok(())
+}
+
+/// Per-rotation scores of one resolution level: approximate, exact, or both.
+pub struct LevelScores {
+    pub approx: Vec<Option<ApproxBest>>,
+    pub exact: Vec<Option<BestOffset>>,
+}
+
+impl LevelScores {
+    pub fn new(n: usize) -> Self {
+        LevelScores {
+            approx: vec![None; n],
+            exact: vec![None; n],
+        }
+    }
+
+    fn scored(&self, k: usize) -> bool {
+        self.approx[k].is_some() || self.exact[k].is_some()
+    }
+}
+
+/// The eligible rotation with the highest exact match score (ties to the lowest index),
+/// re-scoring in f64 (`rescore`) only the rotations whose approximate interval reaches it.
+/// `None` when no scored rotation is eligible.
+pub fn exact_best(
+    scores: &mut LevelScores,
+    eligible: impl Fn(usize) -> bool,
+    mut rescore: impl FnMut(&[usize], &mut LevelScores) -> Result<()>,
+) -> Result<Option<usize>> {
+    let n = scores.exact.len();
+    let candidates: Vec<usize> = (0..n)
+        .filter(|&k| scores.scored(k) && eligible(k))
+        .collect();
+    loop {
+        let mut best: Option<(i64, usize)> = None;
+        let mut floor = f64::NEG_INFINITY;
+        for &k in &candidates {
+            match (&scores.exact[k], &scores.approx[k]) {
+                (Some(e), _) => {
+                    if best.is_none_or(|(m, _)| e.match_score > m) {
+                        best = Some((e.match_score, k));
+                    }
+                }
+                (None, Some(a)) => floor = floor.max(a.lower()),
+                (None, None) => {}
+            }
+        }
+        if let Some((m, _)) = best {
+            floor = floor.max(m as f64);
+        }
+        let pending: Vec<usize> = candidates
+            .iter()
+            .copied()
+            .filter(|&k| scores.exact[k].is_none())
+            .filter(|&k| {
+                // A NaN bound (never expected) counts as reaching: re-score it.
+                scores.approx[k].is_some_and(|a| a.upper() >= floor || a.upper().is_nan())
+            })
+            .collect();
+        if pending.is_empty() {
+            return Ok(best.map(|(_, k)| k));
+        }
+        rescore(&pending, scores)?;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::coarse::correlator::{ApproxBest, BestOffset};
+
+    fn exact(m: i64) -> Option<BestOffset> {
+        Some(BestOffset {
+            match_score: m,
+            offset: [m as usize, 0, 0],
+        })
+    }
+
+    fn approx(value: f64, bound: f64) -> Option<ApproxBest> {
+        Some(ApproxBest {
+            value,
+            error_bound: bound,
+            offset: [0; 3],
+        })
+    }
+
+    /// `exact_best` with a re-scoring that reveals `truth[k]` and records what it was asked.
+    fn best(
+        scores: &mut LevelScores,
+        eligible: impl Fn(usize) -> bool,
+        truth: &[i64],
+    ) -> (Option<usize>, Vec<usize>) {
+        let mut asked = Vec::new();
+        let got = exact_best(scores, eligible, |pending, s| {
+            for &k in pending {
+                s.exact[k] = exact(truth[k]);
+                asked.push(k);
+            }
+            Ok(())
+        })
+        .unwrap();
+        (got, asked)
+    }
+
+    #[test]
+    fn the_highest_exact_score_wins_and_ties_go_to_the_lowest_index() {
+        let mut s = LevelScores::new(5);
+        s.exact = vec![exact(3), exact(7), None, exact(7), exact(5)];
+        let (got, asked) = best(&mut s, |_| true, &[0; 5]);
+        assert_eq!(got, Some(1), "the first of the two 7s");
+        assert!(asked.is_empty());
+        // Not eligible, or not scored at all: never chosen.
+        let mut s = LevelScores::new(4);
+        s.exact = vec![exact(9), None, exact(4), exact(2)];
+        let (got, _) = best(&mut s, |k| k != 0, &[0; 4]);
+        assert_eq!(got, Some(2));
+        let mut s = LevelScores::new(3);
+        let (got, asked) = best(&mut s, |_| true, &[0; 3]);
+        assert_eq!((got, asked), (None, vec![]));
+    }
+
+    #[test]
+    fn only_intervals_that_reach_the_best_are_rescored() {
+        // Rotation 0 is exact at 10; rotation 1 is at least 11, which sets the floor. Rotation
+        // 1 may reach 12 (re-scored: truly 11, the winner); rotation 2 reaches at most 9
+        // (never re-scored); rotation 3 reaches exactly the floor (re-scored: truly 11, a tie
+        // lost to the lower index); rotation 4 is not eligible.
+        let mut s = LevelScores::new(5);
+        s.exact[0] = exact(10);
+        s.approx[1] = approx(11.5, 0.5);
+        s.approx[2] = approx(8.5, 0.5);
+        s.approx[3] = approx(10.5, 0.5);
+        s.approx[4] = approx(20.0, 1.0);
+        let (got, mut asked) = best(&mut s, |k| k != 4, &[10, 11, 9, 11, 30]);
+        asked.sort();
+        assert_eq!(got, Some(1));
+        assert_eq!(asked, vec![1, 3]);
+        assert!(s.exact[2].is_none() && s.exact[4].is_none());
+        // A lower bound above every exact score forces its re-scoring too.
+        let mut s = LevelScores::new(2);
+        s.exact[0] = exact(10);
+        s.approx[1] = approx(14.0, 1.0);
+        let (got, asked) = best(&mut s, |_| true, &[10, 13]);
+        assert_eq!((got, asked), (Some(1), vec![1]));
+    }
+}
