@@ -24,7 +24,7 @@ ROOT = Path(__file__).resolve().parent.parent
 # Bottom to top; the README's architecture section lists the same layers.
 LAYERS = [
     ["error", "threads", "simd", "rng", "memory"],
-    ["transform", "cloud", "spacing", "mesh"],
+    ["transform", "cloud", "spacing", "thin", "mesh", "test_rng"],
     ["io", "rotations"],
     ["coarse", "refine"],
     ["metrics", "render"],
@@ -212,7 +212,7 @@ def main():
             lb = layer_of(b)
             if la is not None and lb is not None and lb > la:
                 wrong.append(f"{a} -> {b}")
-    unplaced = sorted({m.split("::")[0] for m in graph if layer_of(m) is None})
+    unplaced = sorted({m.split("::")[0] for m in graph if m and layer_of(m) is None})
     print(f"wrong-way imports (a lower layer naming a higher one): {len(wrong)}")
     for w in wrong:
         print("   ", w)

@@ -7,9 +7,10 @@
 //! driver records those lines in, in any order, and finishes with the files `ggs bench` writes.
 
 use crate::arrays::to_py_err;
-use crate::{pipeline_config, run_interruptible, Options};
-use ggs::benchmark::shard::Shard;
-use ggs::benchmark::{run_pair_with_picture, PairRow, Plan, RunDir, Selection};
+use crate::interrupt::run_interruptible;
+use crate::registration::{pipeline_config, Options};
+use ggs_bench::benchmark::shard::Shard;
+use ggs_bench::benchmark::{run_pair_with_picture, PairRow, Plan, RunDir, Selection};
 use pyo3::exceptions::{PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyBytes;

@@ -2,9 +2,9 @@
 //! present in every mode, `None` or 0.0 where a stage did not run.
 
 use crate::arrays::matrix_array;
+use ggs::coarse::Hypothesis;
 use ggs::pipeline::Registration;
 use ggs::refine::RefineResult;
-use ggs::coarse::Hypothesis;
 use ggs::Rigid;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
@@ -101,9 +101,9 @@ pub fn result_dict<'py>(
             .map(|r| matrix_array(py, &r.coarse_transform))
             .transpose()?,
     )?;
-    d.set_item("score", c.map(|c| c.score))?;
+    d.set_item("score", c.map(|c| c.winner().score))?;
     d.set_item("ambiguity", c.and_then(|c| c.ambiguity))?;
-    d.set_item("rotation_index", c.map(|c| c.rotation_index))?;
+    d.set_item("rotation_index", c.map(|c| c.winner().rotation_index))?;
     d.set_item("voxel", registration.map(|r| r.voxel))?;
     d.set_item("confidence", registration.map(|r| r.confidence))?;
     d.set_item("ambiguous", registration.map(|r| r.ambiguous))?;

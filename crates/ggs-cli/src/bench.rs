@@ -4,8 +4,8 @@
 use crate::pipeline_args::PipelineArgs;
 use anyhow::{bail, Context, Result};
 use clap::Args;
-use ggs::benchmark::shard::Shard;
-use ggs::benchmark::{self, Plan, Selection};
+use ggs_bench::benchmark::shard::Shard;
+use ggs_bench::benchmark::{self, Plan, Selection};
 use std::path::PathBuf;
 
 #[derive(Args)]

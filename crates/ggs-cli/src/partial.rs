@@ -3,13 +3,12 @@
 
 use anyhow::{bail, Context, Result};
 use clap::Args;
-use ggs::generator::{
-    self, fpv1, output,
-    presets::{OverlapBand, Preset, PRESET_NAMES},
-    viewpoints::{Centre, ViewConfig},
-    GeneratorConfig, SampleSize, ScanInput,
+use ggs_bench::generator::{
+    self, fpv1,
+    options::{positive, GeneratorOptions},
+    output, GeneratorConfig, ScanInput,
 };
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 #[derive(Args)]
@@ -95,153 +94,102 @@ pub struct PartialArgs {
     pub quiet: bool,
 }
 
-fn positive(name: &str, v: f64) -> Result<f64> {
-    if v.is_finite() && v > 0.0 {
-        Ok(v)
-    } else {
-        bail!("--{name} must be a positive number, got {v}")
-    }
-}
-
+/// The generator's configuration from the flags, checked by the library.
 fn config(args: &PartialArgs) -> Result<GeneratorConfig> {
-    let preset = Preset::from_name(&args.preset).with_context(|| {
-        format!(
-            "unknown preset '{}' (known: {})",
-            args.preset,
-            PRESET_NAMES.join(", ")
-        )
-    })?;
-    let centre = match args.centre.as_str() {
-        "centroid" => Centre::Centroid,
-        "origin" => Centre::Origin,
-        other => bail!("--centre: '{other}' is not centroid or origin"),
-    };
-    let up = match args.up.as_str() {
-        "x" => 0,
-        "y" => 1,
-        "z" => 2,
-        other => bail!("--up: '{other}' is not x, y or z"),
-    };
-    let cameras = match &args.cameras {
-        Some(p) => {
-            let text =
-                std::fs::read_to_string(p).with_context(|| format!("reading {}", p.display()))?;
-            Some(generator::parse_cameras(p, &text)?)
-        }
-        None => None,
-    };
-    let band = preset.overlap();
-    let overlap = match (args.min_overlap, args.max_overlap) {
-        (None, None) => None,
-        (lo, hi) => {
-            let b = OverlapBand {
-                min: lo.unwrap_or(band.min),
-                max: hi.unwrap_or(band.max),
-            };
-            if !(0.0..=100.0).contains(&b.min) || !(0.0..=100.0).contains(&b.max) || b.min > b.max {
-                bail!(
-                    "--min-overlap/--max-overlap: [{}, {}] is not a range within [0, 100]",
-                    b.min,
-                    b.max
-                );
-            }
-            Some(b)
-        }
-    };
-    let sample = match (args.points, args.spacing) {
-        (_, Some(s)) => SampleSize::Spacing(positive("spacing", s)?),
-        (Some(n), None) => SampleSize::Count(n),
-        (None, None) => SampleSize::Count(100_000),
-    };
-    if args.subdivisions > 6 {
-        bail!(
-            "--subdivisions {} is too many (at most 6: 40 962 cameras)",
-            args.subdivisions
-        );
-    }
-    Ok(GeneratorConfig {
+    let options = GeneratorOptions {
+        preset: &args.preset,
         seed: args.seed,
-        preset,
-        overlap,
-        views: ViewConfig {
-            subdivisions: args.subdivisions,
-            radius: positive("radius", args.radius)?,
-            centre,
-            up,
-            first: (args.views > 0).then_some(args.views),
-            cameras,
-        },
-        sample,
-        mesh_vertices: args.vertices,
-        flip_factor: positive("flip-factor", args.flip_factor)?,
-        voxel: positive("voxel", args.voxel)?,
+        points: args.points,
+        spacing: args.spacing,
+        vertices: args.vertices,
+        subdivisions: args.subdivisions,
+        radius: args.radius,
+        centre: &args.centre,
+        up: &args.up,
+        views: args.views,
+        cameras: args.cameras.as_deref(),
+        min_overlap: args.min_overlap,
+        max_overlap: args.max_overlap,
+        flip_factor: args.flip_factor,
+        voxel: args.voxel,
         threads: args.threads,
-    })
+    };
+    Ok(options.config()?)
 }
 
 pub fn run(args: PartialArgs) -> Result<()> {
     let cfg = config(&args)?;
+    match &args.fpv1 {
+        Some(csv) => rebuild_fpv1(&args, &cfg, csv),
+        None => generate(&args, &cfg),
+    }
+}
+
+/// `--fpv1 CSV --scans DIR`: the published pairs, with the overlap check.
+fn rebuild_fpv1(args: &PartialArgs, cfg: &GeneratorConfig, csv: &Path) -> Result<()> {
     let t0 = Instant::now();
-    if let Some(csv) = &args.fpv1 {
-        if !args.inputs.is_empty() || args.inputs_list.is_some() {
-            bail!("--fpv1 rebuilds the published pairs from --scans; give no other inputs");
-        }
-        let scans = args.scans.as_ref().expect("clap requires --scans");
-        if !scans.is_dir() {
-            bail!("--scans {}: not a directory", scans.display());
-        }
-        output::prepare_out(&args.out, args.force)?;
-        let pb = crate::progress::bar(100, "scans", args.quiet);
-        let r = fpv1::rebuild(csv, scans, &cfg, &args.out, |done, total, name| {
-            pb.set_length(total as u64);
-            pb.set_position(done as u64);
-            pb.set_message(name.to_string());
-        })?;
-        pb.finish_and_clear();
-        let diffs: Vec<f64> = r
-            .checks
-            .iter()
-            .map(|c| (c.recomputed - c.published).abs())
-            .collect();
-        let max = diffs.iter().copied().fold(0.0, f64::max);
-        let within = |t: f64| diffs.iter().filter(|&&d| d <= t).count();
-        if args.json {
-            outln!(
-                "{}",
-                serde_json::to_string_pretty(&serde_json::json!({
-                    "summary": r.summary,
-                    "missing_scans": r.missing_scans,
-                    "overlap_max_abs_difference": max,
-                    "overlap_within_1": within(1.0),
-                    "overlap_within_5": within(5.0),
-                }))?
-            );
-        } else {
-            out!("{}", r.summary.markdown());
-            outln!(
-                "\nOverlap check ({} pairs): |recomputed − published| ≤ 1 point for {}, ≤ 5 for {}, max {:.2} (per pair: overlap_check.csv)",
-                diffs.len(),
-                within(1.0),
-                within(5.0),
-                max
-            );
-            if !r.missing_scans.is_empty() {
-                outln!(
-                    "{} scans of the list are not in {} (their pairs were skipped), e.g. {}",
-                    r.missing_scans.len(),
-                    scans.display(),
-                    r.missing_scans[0]
-                );
-            }
-            outln!(
-                "{} pairs in {:.1} s; run them with: ggs bench manifest {}",
-                r.pairs.len(),
-                t0.elapsed().as_secs_f64(),
-                args.out.join("pairs.tsv").display()
-            );
-        }
+    if !args.inputs.is_empty() || args.inputs_list.is_some() {
+        bail!("--fpv1 rebuilds the published pairs from --scans; give no other inputs");
+    }
+    let scans = args.scans.as_ref().context("--fpv1 needs --scans DIR")?;
+    if !scans.is_dir() {
+        bail!("--scans {}: not a directory", scans.display());
+    }
+    output::prepare_out(&args.out, args.force)?;
+    let pb = crate::progress::bar(100, "scans", args.quiet);
+    let r = fpv1::rebuild(csv, scans, cfg, &args.out, |done, total, name| {
+        pb.set_length(total as u64);
+        pb.set_position(done as u64);
+        pb.set_message(name.to_string());
+    })?;
+    pb.finish_and_clear();
+    let diffs: Vec<f64> = r
+        .checks
+        .iter()
+        .map(|c| (c.recomputed - c.published).abs())
+        .collect();
+    let max = diffs.iter().copied().fold(0.0, f64::max);
+    let within = |t: f64| diffs.iter().filter(|&&d| d <= t).count();
+    if args.json {
+        outln!(
+            "{}",
+            serde_json::to_string_pretty(&serde_json::json!({
+                "summary": r.summary,
+                "missing_scans": r.missing_scans,
+                "overlap_max_abs_difference": max,
+                "overlap_within_1": within(1.0),
+                "overlap_within_5": within(5.0),
+            }))?
+        );
         return Ok(());
     }
+    out!("{}", r.summary.markdown());
+    outln!(
+        "\nOverlap check ({} pairs): |recomputed − published| ≤ 1 point for {}, ≤ 5 for {}, max {:.2} (per pair: overlap_check.csv)",
+        diffs.len(),
+        within(1.0),
+        within(5.0),
+        max
+    );
+    if !r.missing_scans.is_empty() {
+        outln!(
+            "{} scans of the list are not in {} (their pairs were skipped), e.g. {}",
+            r.missing_scans.len(),
+            scans.display(),
+            r.missing_scans[0]
+        );
+    }
+    outln!(
+        "{} pairs in {:.1} s; run them with: ggs bench manifest {}",
+        r.pairs.len(),
+        t0.elapsed().as_secs_f64(),
+        args.out.join("pairs.tsv").display()
+    );
+    Ok(())
+}
+
+/// The inputs of the command line and of `--inputs-list`, named uniquely.
+fn inputs(args: &PartialArgs) -> Result<Vec<ScanInput>> {
     let mut inputs: Vec<ScanInput> = Vec::new();
     if let Some(list) = &args.inputs_list {
         let text =
@@ -258,9 +206,16 @@ pub fn run(args: PartialArgs) -> Result<()> {
         bail!("no input: give scans or meshes, --inputs-list LIST, or --fpv1 CSV --scans DIR");
     }
     generator::check_names(&inputs)?;
+    Ok(inputs)
+}
+
+/// Scans or meshes in: a generated benchmark out.
+fn generate(args: &PartialArgs, cfg: &GeneratorConfig) -> Result<()> {
+    let t0 = Instant::now();
+    let inputs = inputs(args)?;
     output::prepare_out(&args.out, args.force)?;
     let pb = crate::progress::bar(inputs.len(), "scans", args.quiet);
-    let g = generator::generate(&inputs, &cfg, &args.out, |done, _, name| {
+    let g = generator::generate(&inputs, cfg, &args.out, |done, _, name| {
         pb.set_position(done as u64);
         pb.set_message(name.to_string());
     })?;

@@ -4,9 +4,9 @@
 use crate::refine_args::{parse_method, RefineOptions};
 use anyhow::{bail, Context, Result};
 use clap::Args;
+use ggs::coarse;
 use ggs::pipeline::{Preset, RegistrationConfig};
 use ggs::rotations::RotationSet;
-use ggs::coarse;
 
 /// The configuration of the pipeline, shared by `register` and `bench`: a preset and the
 /// flags that change it.

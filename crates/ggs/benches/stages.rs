@@ -8,12 +8,12 @@
 
 use criterion::{criterion_group, criterion_main, BatchSize, Criterion};
 use ggs::coarse::cpu::{CpuCorrelator, Geometry, Real, Workspace};
+use ggs::coarse::rotated::RotatableCloud;
+use ggs::coarse::voxel::{grid_dims, Occupancy};
+use ggs::coarse::{coarse_register, CoarseToFine, SearchConfig, SearchMode};
 use ggs::io::read_cloud;
 use ggs::refine::{refine, RefineConfig};
-use ggs::coarse::rotated::RotatableCloud;
 use ggs::rotations::RotationSet;
-use ggs::coarse::{coarse_register, CoarseToFine, SearchConfig, SearchMode};
-use ggs::coarse::voxel::{grid_dims, Occupancy};
 use ggs::Cloud;
 use std::path::PathBuf;
 

@@ -23,14 +23,11 @@
 // Grid and matrix code indexes several arrays with one axis variable; iterators would hide it.
 #![allow(clippy::needless_range_loop)]
 
-pub mod benchmark;
 pub mod cloud;
 pub mod coarse;
 pub mod error;
-pub mod generator;
 pub mod html;
 pub mod io;
-pub mod manifest;
 pub mod memory;
 pub mod mesh;
 pub mod metrics;
@@ -45,8 +42,9 @@ pub mod thin;
 pub mod threads;
 pub mod transform;
 
-#[cfg(test)]
-pub(crate) mod test_rng;
+/// Seeded uniform streams for tests (also used by the tests of `ggs-bench`).
+#[doc(hidden)]
+pub mod test_rng;
 
 pub use cloud::{Cloud, Point};
 pub use error::{GgsError, Location, Result};
@@ -59,14 +57,20 @@ pub mod search {
 }
 
 /// The CPU correlator's former path.
-#[deprecated(since = "0.2.0", note = "use `ggs::coarse::cpu` (and the `Correlator` trait)")]
+#[deprecated(
+    since = "0.2.0",
+    note = "use `ggs::coarse::cpu` (and the `Correlator` trait)"
+)]
 pub mod correlate {
     pub use crate::coarse::correlator::{ApproxBest, BestOffset};
     pub use crate::coarse::cpu::*;
 }
 
 /// Voxelization's former path.
-#[deprecated(since = "0.2.0", note = "use `ggs::coarse::voxel` (thinning: `ggs::thin`)")]
+#[deprecated(
+    since = "0.2.0",
+    note = "use `ggs::coarse::voxel` (thinning: `ggs::thin`)"
+)]
 pub mod voxel {
     pub use crate::coarse::voxel::*;
     pub use crate::thin::cell_centroids;

@@ -4,12 +4,12 @@
 mod common;
 
 use common::Lcg;
-use ggs::io::read_cloud;
-use ggs::metrics::{rre, rte};
-use ggs::rotations::RotationSet;
 use ggs::coarse::{
     coarse_register, CoarseToFine, Precision, SearchConfig, SearchMode, SearchResult,
 };
+use ggs::io::read_cloud;
+use ggs::metrics::{rre, rte};
+use ggs::rotations::RotationSet;
 use ggs::{Cloud, Rigid};
 use nalgebra::Vector3;
 use proptest::prelude::*;
@@ -150,6 +150,19 @@ fn assert_identical(a: &SearchResult, b: &SearchResult) {
     assert_eq!(a.stats.geometry, b.stats.geometry);
 }
 
+/// Every statistic but the thread count and the memory estimate (one workspace per thread),
+/// in the bits the JSON prints.
+fn assert_same_stats(a: &SearchResult, b: &SearchResult) {
+    let stats = |r: &SearchResult| {
+        let mut v = serde_json::to_value(&r.stats).unwrap();
+        let o = v.as_object_mut().unwrap();
+        o.remove("threads");
+        o.remove("memory_estimate_bytes");
+        v.to_string()
+    };
+    assert_eq!(stats(a), stats(b));
+}
+
 #[test]
 fn bit_identical_for_1_2_and_8_threads() {
     let dir = common::repo_root().join("tests/data");
@@ -171,6 +184,7 @@ fn bit_identical_for_1_2_and_8_threads() {
             let r = run(threads);
             assert_eq!(r.stats.threads, threads);
             assert_identical(&one, &r);
+            assert_same_stats(&one, &r);
         }
     }
 }

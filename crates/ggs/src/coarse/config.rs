@@ -155,7 +155,6 @@ impl SearchConfig {
     }
 }
 
-
 /// Voxel size for which the target grid spans about `cells` voxels along its longest side,
 /// rounded to 2 significant digits (so it reads well in reports).
 pub fn auto_voxel(target: &Cloud, cells: usize) -> Option<f64> {
@@ -180,7 +179,6 @@ pub fn round_2_digits(x: f64) -> f64 {
         (x / m).round() * m
     }
 }
-
 
 impl CoarseToFine {
     /// Refuses a factor below 1, a fraction outside [0, 1] and a negative neighbour angle.

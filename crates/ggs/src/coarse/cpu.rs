@@ -1,7 +1,7 @@
 //! The CPU correlator: FFT cross-correlation of a source occupancy grid with the target
 //! kernel (docs/method.md, "The score as one correlation").
 //!
-//! With PV = 5 and NV = PPV = −1 the score (docs/coarse-search.md) splits into a constant and an exact
+//! With PV = 5 and NV = PPV = −1 the score (docs/method.md, "Exact integers") splits into a constant and an exact
 //! integer *match score*
 //!
 //! `m(a) = Σ_u O_s[a − C + u] · (6·O_k[u] − 1) = 6·n11(a) − W(a) = 5·n11(a) − n01(a)`,
@@ -28,8 +28,8 @@
 //! f64 every rotation whose bound reaches the best exact score, so its picks are the f64 ones.
 
 pub use super::correlator::{ApproxBest, BestOffset};
-pub use super::geometry::{fast_len, is_3_smooth, Geometry};
 use super::geometry::X_BLOCK;
+pub use super::geometry::{fast_len, is_3_smooth, Geometry};
 use super::grid_view::GridView;
 pub use super::grid_view::Real;
 use super::voxel::Occupancy;
@@ -540,7 +540,7 @@ impl CpuCorrelator<f64> {
     }
 }
 
-/// Brute-force match scores, straight from the definition (docs/coarse-search.md, step 3): pad the
+/// Brute-force match scores, straight from the definition (docs/method.md, "The score"): pad the
 /// source "same" with −1, correlate with the ±1/5 kernel, and subtract the constant
 /// `|K| − 6·n_k` then divide by 6. Returns `m(a)` in x-major C order. For tests.
 pub fn brute_force_scores(source: &Occupancy, kernel: &Occupancy) -> Vec<i64> {

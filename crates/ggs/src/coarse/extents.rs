@@ -80,4 +80,3 @@ pub fn target_kernel(target: &Cloud, min: Point, s: f64) -> Result<Occupancy> {
         .collect();
     Occupancy::from_points(&shifted, [0.0; 3], s)
 }
-

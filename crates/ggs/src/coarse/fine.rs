@@ -271,7 +271,10 @@ impl<'p> FineLevel<'p> {
             .iter()
             .map(|&k| self.hypothesis(set, k))
             .collect::<Result<Vec<_>>>()?;
-        let runner_up = picks.runner_up.map(|k| self.hypothesis(set, k)).transpose()?;
+        let runner_up = picks
+            .runner_up
+            .map(|k| self.hypothesis(set, k))
+            .transpose()?;
         let win = hypotheses[0];
         let ambiguity = match runner_up {
             Some(r) if win.match_score > 0 => Some(r.match_score as f64 / win.match_score as f64),
@@ -306,4 +309,3 @@ impl<'p> FineLevel<'p> {
         })
     }
 }
-

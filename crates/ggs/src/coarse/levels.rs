@@ -4,9 +4,9 @@
 use super::config::{CoarseToFine, SearchConfig};
 use super::correlator::{Backend, PassControl, RotatedSources, Scores, StageTimes};
 use super::extents::{geometry_for, rotated_boxes, target_kernel};
+use super::register::Prepared;
 use super::result::CoarseLevel;
 use super::rotated::RotatableCloud;
-use super::register::Prepared;
 use crate::cloud::Cloud;
 use crate::error::Result;
 use crate::rotations::RotationSet;
@@ -56,7 +56,11 @@ pub(super) fn coarse_candidates(
 /// The `keep` best rotations of the coarse order and every rotation within
 /// `neighbour_deg` of one of them, in increasing index order. A keep of a quarter of the set
 /// or more takes the whole set.
-pub(super) fn kept_with_neighbours(level: &CoarseLevel, keep: usize, set: &RotationSet) -> Vec<usize> {
+pub(super) fn kept_with_neighbours(
+    level: &CoarseLevel,
+    keep: usize,
+    set: &RotationSet,
+) -> Vec<usize> {
     let n = level.order().len();
     if keep * 4 >= n {
         return (0..n).collect();
@@ -77,4 +81,3 @@ pub(super) fn kept_with_neighbours(level: &CoarseLevel, keep: usize, set: &Rotat
     }
     (0..n).filter(|&k| selected[k]).collect()
 }
-

@@ -1,8 +1,8 @@
 //! What the large buffers of a search cost, and the error for a search that does not fit.
 
 use super::geometry::Geometry;
-use crate::error::GgsError;
 use super::voxel;
+use crate::error::GgsError;
 use crate::memory;
 
 /// What the large buffers of a search cost, and which voxel size makes them fit.

@@ -35,9 +35,9 @@
 pub mod config;
 pub mod correlator;
 pub mod cpu;
-pub mod geometry;
 pub mod extents;
 mod fine;
+pub mod geometry;
 pub mod grid_view;
 pub mod levels;
 mod memory_model;

@@ -23,6 +23,8 @@ use std::time::{Duration, Instant};
 pub struct CpuBackend;
 
 /// The correlators of one plan: f64 for exact scores, f32 for approximate ones.
+// One plan per search level, boxed behind `dyn Correlator`: the size difference costs nothing.
+#[allow(clippy::large_enum_variant)]
 pub enum CpuPlan {
     Approximate(CpuCorrelator<f32>),
     Mixed(CpuCorrelator<f64>, CpuCorrelator<f32>),
@@ -129,7 +131,6 @@ fn run_pass<T: Real, R: Send + Copy>(
             scope.spawn(|_| {
                 let mut ws = corr.workspace();
                 let mut t_vox = Duration::ZERO;
-                let mut flops = 0.0;
                 let mut local: Vec<(usize, R)> = Vec::new();
                 loop {
                     if ctl.cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
@@ -144,11 +145,8 @@ fn run_pass<T: Real, R: Send + Copy>(
                     let tv = Instant::now();
                     let b = src.boxes[k].expect("extents computed for every scored rotation");
                     ws.begin(b.dims);
-                    src
-                        .cloud
-                        .voxelize(&src.rows[k], &b.min, s, ws.grid_mut());
+                    src.cloud.voxelize(&src.rows[k], &b.min, s, ws.grid_mut());
                     t_vox += tv.elapsed();
-                    flops += corr.geometry().flops(b.dims);
                     local.push((slot, score(corr, &mut ws)));
                     let n = done.fetch_add(1, Ordering::Relaxed) + 1;
                     if let Some(p) = ctl.progress {
@@ -170,7 +168,7 @@ fn run_pass<T: Real, R: Send + Copy>(
                     product: ws.t_product,
                     inverse: ws.t_inverse,
                     max_rounding_error: ws.max_rounding_error,
-                    flops,
+                    flops: 0.0,
                 });
             });
         }
@@ -178,13 +176,21 @@ fn run_pass<T: Real, R: Send + Copy>(
     if cancelled.load(Ordering::Relaxed) {
         return Err(GgsError::Cancelled);
     }
+    // The FLOPs summed in the order of `indices`, not of the workers: the same bits at any
+    // thread count.
+    let mut times = stats.into_inner().expect("workers finished");
+    times.flops = indices
+        .iter()
+        .filter_map(|&k| src.boxes[k])
+        .map(|b| corr.geometry().flops(b.dims))
+        .sum();
     let results = slots
         .into_inner()
         .expect("workers finished")
         .into_iter()
         .map(|r| r.expect("every rotation scored"))
         .collect();
-    Ok((results, stats.into_inner().expect("workers finished")))
+    Ok((results, times))
 }
 
 #[cfg(test)]

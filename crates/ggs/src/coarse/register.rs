@@ -65,7 +65,8 @@ pub fn coarse_register_with(
                 progress: cfg.progress.as_deref(),
                 ..ctl
             };
-            let (level, times) = coarse_candidates(backend, &with_progress, &prep, target, set, cfg, c)?;
+            let (level, times) =
+                coarse_candidates(backend, &with_progress, &prep, target, set, cfg, c)?;
             tally.times.add(&times);
             Some(level)
         }
@@ -101,7 +102,16 @@ pub fn coarse_register_with(
         coarse_level_ms,
         rescore_ms: ms(tally.rescore_time),
     };
-    let mut result = fine.result(source, target, set, cfg, picks, coarse_level, &tally, timings)?;
+    let mut result = fine.result(
+        source,
+        target,
+        set,
+        cfg,
+        picks,
+        coarse_level,
+        &tally,
+        timings,
+    )?;
     result.timings.total_ms = ms(t_start.elapsed());
     Ok(result)
 }
@@ -235,4 +245,3 @@ mod tests {
         assert!((r.transform().translation - truth.translation).norm() < 0.15);
     }
 }
-

@@ -204,4 +204,3 @@ impl CoarseLevel {
         self.rank[k]
     }
 }
-

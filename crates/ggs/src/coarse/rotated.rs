@@ -1,4 +1,5 @@
-//! The centred source cloud, prepared for being rotated many times (docs/coarse-search.md, step 2).
+//! The centred source cloud, prepared for being rotated many times (docs/method.md,
+//! "Voxelization", step 2).
 //!
 //! Points are grouped into spatial clusters (a coarse 8×8×8 grid over the cloud's box) so
 //! the exact extents of `R·(X − c)` for a rotation come from a few clusters: a cluster whose
@@ -6,9 +7,9 @@
 //! are computed with the same float expression as the voxelization, so both agree bit for bit.
 //! Cluster order also keeps voxel writes local. Occupancy does not depend on point order.
 
-use crate::cloud::{Cloud, Point};
 pub use super::grid_view::GridView;
 use super::grid_view::Real;
+use crate::cloud::{Cloud, Point};
 
 /// `row · p`, the one expression used for every rotated coordinate.
 #[inline(always)]

@@ -7,7 +7,9 @@
 //! below the winner's, so the pick (ties to the lowest index) is the one an all-exact search
 //! makes (docs/method.md, "Reduced precision").
 
-use super::correlator::{ApproxBest, BestOffset, Correlator, PassControl, RotatedSources, StageTimes};
+use super::correlator::{
+    ApproxBest, BestOffset, Correlator, PassControl, RotatedSources, StageTimes,
+};
 use crate::error::Result;
 use std::time::{Duration, Instant};
 

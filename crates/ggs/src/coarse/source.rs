@@ -25,7 +25,6 @@ pub fn representatives(source: &Cloud, s: f64) -> Option<Cloud> {
     (reps.len() * MIN_POINTS_PER_REPRESENTATIVE <= source.len()).then(|| Cloud::new(reps))
 }
 
-
 #[cfg(test)]
 mod tests {
     use super::*;

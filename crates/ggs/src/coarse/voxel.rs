@@ -1,4 +1,4 @@
-//! Voxelization (docs/coarse-search.md, step 1).
+//! Voxelization (docs/method.md, "Voxelization").
 //!
 //! For points already shifted so their minimum is 0 on every axis, with voxel size `s`
 //! (in the clouds' units): grid dims `N_d = floor(max_d / s) + 1` and the cell of a point is

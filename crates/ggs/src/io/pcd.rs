@@ -103,15 +103,65 @@ pub fn parse_pcd(path: &Path, bytes: &[u8]) -> Result<Vec<Point>> {
     }
 }
 
+/// The header's lines as written, before they are checked against each other.
+#[derive(Default)]
+struct RawHeader {
+    names: Vec<String>,
+    sizes: Vec<usize>,
+    types: Vec<u8>,
+    counts: Vec<usize>,
+    width: Option<usize>,
+    height: Option<usize>,
+    points: Option<usize>,
+    data_kind: String,
+    /// Byte offset of the first byte after the `DATA` line.
+    data_start: usize,
+    /// Number of the `DATA` line (1-based).
+    lines: usize,
+}
+
 fn parse_header(path: &Path, bytes: &[u8]) -> Result<PcdHeader> {
+    let raw = read_header_lines(path, bytes)?;
+    let fields = header_fields(path, &raw)?;
+    let n = point_count(path, &raw, &fields)?;
+    let xyz: Vec<usize> = ["x", "y", "z"]
+        .iter()
+        .map(|name| {
+            fields
+                .iter()
+                .position(|f| f.name == *name)
+                .ok_or_else(|| GgsError::in_file(path, format!("no field '{name}' in FIELDS")))
+        })
+        .collect::<Result<_>>()?;
+    if !matches!(
+        raw.data_kind.as_str(),
+        "ascii" | "binary" | "binary_compressed"
+    ) {
+        return Err(GgsError::at_line(
+            path,
+            raw.lines,
+            format!(
+                "unknown DATA '{}' (expected ascii, binary or binary_compressed)",
+                raw.data_kind
+            ),
+        ));
+    }
+    Ok(PcdHeader {
+        fields,
+        xyz,
+        n,
+        data_kind: raw.data_kind,
+        data_start: raw.data_start,
+        lines: raw.lines,
+    })
+}
+
+/// Reads the header up to and including its `DATA` line; each value is parsed where it
+/// stands, so an error names its line.
+fn read_header_lines(path: &Path, bytes: &[u8]) -> Result<RawHeader> {
+    let mut raw = RawHeader::default();
     let mut pos = 0usize;
     let mut line_no = 0usize;
-    let mut names: Vec<String> = Vec::new();
-    let mut sizes: Vec<usize> = Vec::new();
-    let mut types: Vec<u8> = Vec::new();
-    let mut counts: Vec<usize> = Vec::new();
-    let (mut width, mut height, mut points) = (None::<usize>, 1usize, None::<usize>);
-    let data_kind: String;
     loop {
         let Some(nl) = bytes[pos..].iter().position(|&b| b == b'\n') else {
             return Err(GgsError::at_line(
@@ -128,58 +178,79 @@ fn parse_header(path: &Path, bytes: &[u8]) -> Result<PcdHeader> {
         if line.is_empty() || line.starts_with('#') {
             continue;
         }
-        let mut tok = line.split_whitespace();
-        let key = tok.next().unwrap_or("").to_ascii_uppercase();
-        let rest: Vec<&str> = tok.collect();
-        let parse_usize = |t: &str| {
-            t.parse::<usize>().map_err(|_| {
-                GgsError::at_line(
-                    path,
-                    line_no,
-                    format!("'{t}' is not a non-negative integer ({key})"),
-                )
-            })
-        };
-        match key.as_str() {
-            "VERSION" | "VIEWPOINT" => {}
-            "FIELDS" | "COLUMNS" => names = rest.iter().map(|s| s.to_string()).collect(),
-            "SIZE" => sizes = rest.iter().map(|t| parse_usize(t)).collect::<Result<_>>()?,
-            "TYPE" => {
-                types = rest
-                    .iter()
-                    .map(|t| match *t {
-                        "F" | "I" | "U" => Ok(t.as_bytes()[0]),
-                        _ => Err(GgsError::at_line(
-                            path,
-                            line_no,
-                            format!("unknown TYPE '{t}' (expected F, I or U)"),
-                        )),
-                    })
-                    .collect::<Result<_>>()?
-            }
-            "COUNT" => counts = rest.iter().map(|t| parse_usize(t)).collect::<Result<_>>()?,
-            "WIDTH" => width = Some(parse_usize(rest.first().copied().unwrap_or(""))?),
-            "HEIGHT" => height = parse_usize(rest.first().copied().unwrap_or(""))?,
-            "POINTS" => points = Some(parse_usize(rest.first().copied().unwrap_or(""))?),
-            "DATA" => {
-                data_kind = rest.first().copied().unwrap_or("").to_ascii_lowercase();
-                break;
-            }
-            _ => {
-                return Err(GgsError::at_line(
-                    path,
-                    line_no,
-                    format!("unknown header keyword '{key}'"),
-                ));
-            }
+        if header_line(path, line_no, &line, &mut raw)? {
+            raw.data_start = pos;
+            raw.lines = line_no;
+            return Ok(raw);
         }
     }
+}
+
+/// One keyword line into `raw`; `true` for the `DATA` line, the last.
+fn header_line(path: &Path, line_no: usize, line: &str, raw: &mut RawHeader) -> Result<bool> {
+    let mut tok = line.split_whitespace();
+    let key = tok.next().unwrap_or("").to_ascii_uppercase();
+    let rest: Vec<&str> = tok.collect();
+    let parse_usize = |t: &str| {
+        t.parse::<usize>().map_err(|_| {
+            GgsError::at_line(
+                path,
+                line_no,
+                format!("'{t}' is not a non-negative integer ({key})"),
+            )
+        })
+    };
+    let first = rest.first().copied().unwrap_or("");
+    match key.as_str() {
+        "VERSION" | "VIEWPOINT" => {}
+        "FIELDS" | "COLUMNS" => raw.names = rest.iter().map(|s| s.to_string()).collect(),
+        "SIZE" => raw.sizes = rest.iter().map(|t| parse_usize(t)).collect::<Result<_>>()?,
+        "TYPE" => {
+            raw.types = rest
+                .iter()
+                .map(|t| match *t {
+                    "F" | "I" | "U" => Ok(t.as_bytes()[0]),
+                    _ => Err(GgsError::at_line(
+                        path,
+                        line_no,
+                        format!("unknown TYPE '{t}' (expected F, I or U)"),
+                    )),
+                })
+                .collect::<Result<_>>()?
+        }
+        "COUNT" => raw.counts = rest.iter().map(|t| parse_usize(t)).collect::<Result<_>>()?,
+        "WIDTH" => raw.width = Some(parse_usize(first)?),
+        "HEIGHT" => raw.height = Some(parse_usize(first)?),
+        "POINTS" => raw.points = Some(parse_usize(first)?),
+        "DATA" => {
+            raw.data_kind = first.to_ascii_lowercase();
+            return Ok(true);
+        }
+        _ => {
+            return Err(GgsError::at_line(
+                path,
+                line_no,
+                format!("unknown header keyword '{key}'"),
+            ));
+        }
+    }
+    Ok(false)
+}
+
+/// The fields: one name, size, type and count each (COUNT defaults to 1), of a type and size
+/// ggs decodes.
+fn header_fields(path: &Path, raw: &RawHeader) -> Result<Vec<Field>> {
+    let names = &raw.names;
     if names.is_empty() {
         return Err(GgsError::in_file(path, "the header has no FIELDS line"));
     }
-    if counts.is_empty() {
-        counts = vec![1; names.len()];
-    }
+    let ones = vec![1; names.len()];
+    let counts = if raw.counts.is_empty() {
+        &ones
+    } else {
+        &raw.counts
+    };
+    let (sizes, types) = (&raw.sizes, &raw.types);
     if sizes.len() != names.len() || types.len() != names.len() || counts.len() != names.len() {
         return Err(GgsError::in_file(
             path,
@@ -224,7 +295,14 @@ fn parse_header(path: &Path, bytes: &[u8]) -> Result<PcdHeader> {
             ));
         }
     }
-    let n = match (points, width) {
+    Ok(fields)
+}
+
+/// POINTS, or WIDTH × HEIGHT (HEIGHT defaults to 1); refused when the points' bytes could not
+/// fit in a file.
+fn point_count(path: &Path, raw: &RawHeader, fields: &[Field]) -> Result<usize> {
+    let height = raw.height.unwrap_or(1);
+    let n = match (raw.points, raw.width) {
         (Some(p), _) => p,
         (None, Some(w)) => w.checked_mul(height).ok_or_else(|| {
             GgsError::in_file(path, format!("WIDTH {w} × HEIGHT {height} overflows"))
@@ -248,30 +326,7 @@ fn parse_header(path: &Path, bytes: &[u8]) -> Result<PcdHeader> {
                 format!("{n} points of the declared fields need more bytes than a file can hold"),
             )
         })?;
-    let xyz: Vec<usize> = ["x", "y", "z"]
-        .iter()
-        .map(|name| {
-            fields
-                .iter()
-                .position(|f| f.name == *name)
-                .ok_or_else(|| GgsError::in_file(path, format!("no field '{name}' in FIELDS")))
-        })
-        .collect::<Result<_>>()?;
-    if !matches!(data_kind.as_str(), "ascii" | "binary" | "binary_compressed") {
-        return Err(GgsError::at_line(
-            path,
-            line_no,
-            format!("unknown DATA '{data_kind}' (expected ascii, binary or binary_compressed)"),
-        ));
-    }
-    Ok(PcdHeader {
-        fields,
-        xyz,
-        n,
-        data_kind,
-        data_start: pos,
-        lines: line_no,
-    })
+    Ok(n)
 }
 
 fn decode(f: &Field, b: &[u8]) -> f64 {

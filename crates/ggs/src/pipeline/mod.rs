@@ -29,13 +29,13 @@ pub mod polish;
 pub mod verify;
 
 use crate::cloud::Cloud;
-use crate::error::{GgsError, Result};
-use crate::refine::{refine_prepared, PreparedPair, RefineConfig, RefineResult};
-use crate::rotations::{RotationSet, DEFAULT_SET};
 use crate::coarse::{
     auto_voxel, coarse_register, round_2_digits, CoarseToFine, Hypothesis, SearchConfig,
     SearchMode, SearchResult,
 };
+use crate::error::{GgsError, Result};
+use crate::refine::{refine_prepared, PreparedPair, RefineConfig, RefineResult};
+use crate::rotations::{RotationSet, DEFAULT_SET};
 use crate::transform::{rotation_angle_deg, Rigid};
 pub use polish::PolishConfig;
 use std::time::Instant;

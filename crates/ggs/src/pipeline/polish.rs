@@ -12,9 +12,9 @@
 //! times the cost.)
 
 use crate::cloud::Cloud;
+use crate::coarse::{coarse_register, Hypothesis, SearchConfig, SearchMode};
 use crate::error::Result;
 use crate::rotations::RotationSet;
-use crate::coarse::{coarse_register, Hypothesis, SearchConfig, SearchMode};
 use nalgebra::{Matrix3, Rotation3, Vector3};
 
 /// Parameters of the polish.

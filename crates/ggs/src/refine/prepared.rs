@@ -12,8 +12,8 @@ use super::covariance::{LazyShapes, LocalShape};
 use super::neighbors::PointIndex;
 use crate::cloud::{Cloud, Point};
 use crate::error::{GgsError, Result};
-use crate::transform::Rigid;
 use crate::thin::cell_centroids;
+use crate::transform::Rigid;
 use nalgebra::Vector3;
 use std::sync::OnceLock;
 

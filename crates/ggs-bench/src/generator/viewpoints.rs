@@ -6,7 +6,7 @@
 //! first K kept. Camera positions are given in the floor frame, as in the FPv1 names
 //! (`viewpoint0-[-0.41 2.43 0.08]`).
 
-use crate::cloud::{bounds, Point};
+use ggs::cloud::{bounds, Point};
 
 /// Unit icosphere vertices in the order of the FAUST-partial generator, so that "the first K
 /// above-floor vertices" names the same cameras: the 12 icosahedron vertices
@@ -16,7 +16,7 @@ use crate::cloud::{bounds, Point};
 /// unnormalised, at length √(1+φ²)) and pushed to the unit sphere; every vertex is normalised
 /// at the end. 0 → 12, 1 → 42, 2 → 162 vertices.
 pub fn fpv1_icosphere(levels: u32) -> Vec<[f64; 3]> {
-    let (mut v, mut faces) = crate::rotations::icosphere::icosahedron();
+    let (mut v, mut faces) = ggs::rotations::icosphere::icosahedron();
     for _ in 0..levels {
         let mut split = std::collections::HashMap::new();
         let mut next = Vec::with_capacity(faces.len() * 4);

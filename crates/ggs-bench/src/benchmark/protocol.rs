@@ -1,6 +1,6 @@
 //! The published benchmark protocols (docs/benchmarks.md): pair lists, ground truth and defaults.
 //!
-//! The metadata ships inside the library (`crates/ggs/protocols/`, see its README for the
+//! The metadata ships inside the library (`crates/ggs-bench/protocols/`, see its README for the
 //! provenance); only the point clouds come from the user's data directory:
 //!
 //! | protocol | clouds under `--data DIR` | ground truth | pairs |
@@ -13,8 +13,8 @@
 //! In every protocol the ground truth `T` maps the source into the target's frame.
 
 use super::{BenchPair, CloudRef};
-use crate::error::{GgsError, Result};
-use crate::transform::Rigid;
+use ggs::error::{GgsError, Result};
+use ggs::transform::Rigid;
 use std::collections::{HashMap, HashSet};
 use std::path::{Path, PathBuf};
 

@@ -10,11 +10,11 @@
 
 use super::report::{recall_curves_svg, Summary};
 use super::row::PairRow;
-use crate::error::Result;
-use crate::html::{bar_chart_svg, escape, legend, log_histogram_svg, num, page, SORT_SCRIPT};
-use crate::render::{self, Image, Layer};
-use crate::transform::{Point, Rigid};
 use base64::Engine;
+use ggs::error::Result;
+use ggs::html::{bar_chart_svg, escape, legend, log_histogram_svg, num, page, SORT_SCRIPT};
+use ggs::render::{self, Image, Layer};
+use ggs::transform::{Point, Rigid};
 use std::fmt::Write;
 use std::path::{Path, PathBuf};
 
@@ -90,7 +90,7 @@ pub struct ReportContext<'a> {
 /// Write `out/report.html` for `rows` (atomically).
 pub fn write_report(ctx: &ReportContext, rows: &[PairRow]) -> Result<()> {
     let html = report_html(ctx, rows);
-    crate::io::write_atomic(&ctx.out.join("report.html"), html.as_bytes())
+    ggs::io::write_atomic(&ctx.out.join("report.html"), html.as_bytes())
 }
 
 /// The page.
@@ -297,7 +297,7 @@ fn pairs_table_html(rows: &[PairRow]) -> String {
             r.source_points,
             r.source_points,
             r.target_points,
-            crate::html::trim_number(r.voxel),
+            ggs::html::trim_number(r.voxel),
             num(r.total_ms, 0),
             escape(r.error.as_deref().unwrap_or(""))
         );

@@ -7,7 +7,7 @@
 //! diagonal.
 
 use super::hull::convex_hull;
-use crate::cloud::{bounds, Point};
+use ggs::cloud::{bounds, Point};
 
 /// The flip radius of the FAUST-partial protocol: `factor` × the bounding-box diagonal of `points`.
 pub fn flip_radius(points: &[Point], factor: f64) -> f64 {
@@ -67,7 +67,7 @@ pub fn visible_points(points: &[Point], camera: &Point, radius: f64) -> Result<V
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::test_rng::uniform;
+    use ggs::test_rng::uniform;
 
     fn sphere(n: usize, seed: u64) -> Vec<Point> {
         let mut r = uniform(seed);

@@ -4,9 +4,9 @@
 //! (`T' = T · M⁻¹` for the moved source `M·p`), so the same pairs can be run unmoved and
 //! moved and the results compared.
 
-use crate::cloud::Cloud;
-use crate::rng::Rng;
-use crate::transform::Rigid;
+use ggs::cloud::Cloud;
+use ggs::rng::Rng;
+use ggs::transform::Rigid;
 use nalgebra::{Quaternion, UnitQuaternion, Vector3};
 
 /// FNV-1a hash of a pair id: the motion of a pair depends on its id and the seed only, not on
@@ -44,7 +44,7 @@ pub fn random_motion(seed: u64, id: &str, source: &Cloud) -> Rigid {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::transform::rotation_angle_deg;
+    use ggs::transform::rotation_angle_deg;
     use nalgebra::Matrix3;
 
     fn cloud() -> Cloud {

@@ -1,21 +1,22 @@
 //! Coarse search on every real pair of `shared/data/pairs.tsv` at its suggested voxel.
 //!
 //! Prints the table of docs/coarse-search.md (regenerate it with
-//! `cargo test --release -p ggs --test real_pairs -- --nocapture`) and checks the accuracy
+//! `cargo test --release -p ggs-bench --test real_pairs -- --nocapture`) and checks the accuracy
 //! each rotation set must reach: within 10° and 3 voxels of the ground truth where the set
 //! covers the rotation and the overlap is high; 15° / 0.5 m on 3dmatch_demo and 15° / 3
 //! voxels on eth_car (the original code lands at 8.7° / 0.32 m and 10.9° / 1.8 m there).
 //! Every pair is also searched coarse-to-fine, which must pick exactly the same.
 
+#[path = "../../ggs/tests/common/mod.rs"]
 mod common;
 
+use ggs::coarse::{coarse_register, CoarseToFine, SearchConfig, SearchMode};
 use ggs::io::read_cloud;
-use ggs::manifest::read_manifest;
 use ggs::metrics::{rre, rte};
 use ggs::refine::{refine, RefineConfig};
 use ggs::rotations::RotationSet;
-use ggs::coarse::{coarse_register, CoarseToFine, SearchConfig, SearchMode};
 use ggs::transform::rotation_angle_deg;
+use ggs_bench::manifest::read_manifest;
 use nalgebra::Matrix3;
 use std::fmt::Write;
 use std::time::Instant;
@@ -117,9 +118,15 @@ fn coarse_search_on_real_pairs() {
                 },
             )
             .unwrap();
-            if (fast.winner().rotation_index, fast.winner().offset, fast.winner().score)
-                != (r.winner().rotation_index, r.winner().offset, r.winner().score)
-            {
+            if (
+                fast.winner().rotation_index,
+                fast.winner().offset,
+                fast.winner().score,
+            ) != (
+                r.winner().rotation_index,
+                r.winner().offset,
+                r.winner().score,
+            ) {
                 failures.push(format!(
                     "{set_name} {}: coarse-to-fine picked rotation {} score {}, exhaustive {} score {}",
                     pair.name, fast.winner().rotation_index, fast.winner().score, r.winner().rotation_index, r.winner().score

@@ -431,7 +431,7 @@ pub fn convex_hull(pts: &[[f64; 3]]) -> Result<Hull, HullError> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::test_rng::uniform;
+    use ggs::test_rng::uniform;
 
     fn check_convex(pts: &[[f64; 3]], hull: &Hull) {
         let scale = pts

@@ -14,9 +14,9 @@
 //! Every file is written atomically; nothing in them depends on time or thread count.
 
 use super::{GeneratedPair, ScanViews};
-use crate::cloud::Point;
-use crate::error::{GgsError, Result};
-use crate::io::{ply, write_atomic};
+use ggs::cloud::Point;
+use ggs::error::{GgsError, Result};
+use ggs::io::{ply, write_atomic};
 use serde::Serialize;
 use std::fmt::Write as _;
 use std::path::Path;
@@ -167,7 +167,7 @@ impl Summary {
         let angles: Vec<f64> = pairs
             .iter()
             .map(|p| {
-                crate::transform::rotation_angle_deg(
+                ggs::transform::rotation_angle_deg(
                     &p.transform.rotation,
                     &nalgebra::Matrix3::identity(),
                 )

@@ -18,12 +18,12 @@ pub mod row;
 pub mod run_dir;
 pub mod shard;
 
-use crate::cloud::Cloud;
-use crate::error::{GgsError, Result};
-use crate::metrics::{is_success, rre, rte};
-use crate::pipeline::{register, Registration, RegistrationConfig, VoxelSize};
-use crate::refine::RefineConfig;
-use crate::transform::Rigid;
+use ggs::cloud::Cloud;
+use ggs::error::{GgsError, Result};
+use ggs::metrics::{is_success, rre, rte};
+use ggs::pipeline::{register, Registration, RegistrationConfig, VoxelSize};
+use ggs::refine::RefineConfig;
+use ggs::transform::Rigid;
 pub use plan::{Plan, Selection};
 pub use protocol::Protocol;
 pub use row::PairRow;
@@ -57,13 +57,13 @@ impl CloudRef {
     /// Read the cloud.
     pub fn load(&self) -> Result<Cloud> {
         match self {
-            CloudRef::File(p) => Ok(crate::io::read_cloud(p, None)?.cloud),
+            CloudRef::File(p) => Ok(ggs::io::read_cloud(p, None)?.cloud),
             CloudRef::Visible {
                 cloud,
                 indices,
                 transform,
             } => {
-                let all = crate::io::read_cloud(cloud, None)?.cloud;
+                let all = ggs::io::read_cloud(cloud, None)?.cloud;
                 let idx = read_indices(indices, all.len())?;
                 let pts = Cloud::new(idx.iter().map(|&i| all.points[i]).collect());
                 Ok(match transform {
@@ -195,7 +195,7 @@ pub(crate) fn pin_json(
         (Ok(earlier), _) if earlier == text => Ok(()),
         (Ok(_), _) => Err(GgsError::in_file(path, differ)),
         (Err(_), Some(why)) => Err(GgsError::in_file(path, why)),
-        (Err(_), None) => crate::io::write_atomic(path, text.as_bytes()),
+        (Err(_), None) => ggs::io::write_atomic(path, text.as_bytes()),
     }
 }
 
@@ -218,7 +218,7 @@ fn run_pair_pictured(
     pair: &BenchPair,
     cfg: &RunConfig,
     picture: bool,
-) -> (PairRow, Option<crate::render::Image>) {
+) -> (PairRow, Option<ggs::render::Image>) {
     let t0 = Instant::now();
     let mut row = PairRow::new(&pair.id, pair.overlap);
     let mut image = None;

@@ -1,12 +1,13 @@
 //! Benchmark protocols and the resumable runner.
 
+#[path = "../../ggs/tests/common/mod.rs"]
 mod common;
 
-use ggs::benchmark::protocol::{eth_selection, parse_gt_log, Protocol};
-use ggs::benchmark::{missing_files, run, BenchPair, CloudRef, Plan, RunConfig};
 use ggs::io::kitti::write_kitti_bin;
 use ggs::pipeline::RegistrationConfig;
 use ggs::transform::Rigid;
+use ggs_bench::benchmark::protocol::{eth_selection, parse_gt_log, Protocol};
+use ggs_bench::benchmark::{missing_files, run, BenchPair, CloudRef, Plan, RunConfig};
 use std::path::{Path, PathBuf};
 
 fn temp_dir(name: &str) -> PathBuf {
@@ -111,7 +112,7 @@ fn eth_reads_the_users_gt_logs_and_names_missing_ones() {
     );
     // gt.log records in either direction.
     let sel = eth_selection().unwrap();
-    for scene in ggs::benchmark::protocol::ETH_SCENES {
+    for scene in ggs_bench::benchmark::protocol::ETH_SCENES {
         std::fs::create_dir_all(dir.join(scene)).unwrap();
         let mut log = String::new();
         for (s, i, j, _) in sel.iter().filter(|p| p.0 == scene) {
@@ -317,18 +318,18 @@ fn visible_point_views_load_and_register() {
     };
     let target = pair.target.load().unwrap();
     assert_eq!(target.len(), n * 3 / 4);
-    let row = ggs::benchmark::run_pair(&pair, &config());
+    let row = ggs_bench::benchmark::run_pair(&pair, &config());
     assert!(row.success, "{row:?}");
     assert!(row.rre < 0.5 && row.rte < 1e-3, "{row:?}");
     // Bad index files are named with the line.
     let bad = write("bad.txt", vec![]);
     std::fs::write(&bad, "0 1\n2 x\n").unwrap();
-    let e = ggs::benchmark::read_indices(&bad, n)
+    let e = ggs_bench::benchmark::read_indices(&bad, n)
         .unwrap_err()
         .to_string();
     assert!(e.contains("line 2") && e.contains("'x'"), "{e}");
     std::fs::write(&bad, format!("{n}\n")).unwrap();
-    let e = ggs::benchmark::read_indices(&bad, n)
+    let e = ggs_bench::benchmark::read_indices(&bad, n)
         .unwrap_err()
         .to_string();
     assert!(e.contains("out of range"), "{e}");

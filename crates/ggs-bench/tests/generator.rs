@@ -1,9 +1,10 @@
 //! The partial-view generator on the bundled SMPL body (tests/data/human_woman.obj):
 //! reproducibility, the FPv1 rebuild round trip, and registration of generated pairs.
 
+#[path = "../../ggs/tests/common/mod.rs"]
 mod common;
 
-use ggs::generator::{
+use ggs_bench::generator::{
     self,
     presets::{Level, Preset, Varies},
     GeneratorConfig, SampleSize, ScanInput,
@@ -206,7 +207,7 @@ fn generated_pairs_register() {
     let dir = tmp("register");
     let cfg = config(5, 0);
     let g = generate(&dir, &cfg);
-    let pairs: Vec<_> = ggs::manifest::read_manifest(&dir.join("pairs.tsv"))
+    let pairs: Vec<_> = ggs_bench::manifest::read_manifest(&dir.join("pairs.tsv"))
         .unwrap()
         .into_iter()
         .take(2)

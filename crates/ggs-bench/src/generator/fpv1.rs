@@ -8,10 +8,10 @@
 
 use super::output::{self, Summary};
 use super::viewpoints::parse_fpv1_viewpoint;
-use super::{views_of_points, GeneratedPair, GeneratorConfig, ScanInput};
-use crate::cloud::Point;
-use crate::error::{GgsError, Result};
-use crate::transform::Rigid;
+use super::{views_of_points, GeneratedPair, GeneratorConfig, ScanInput, ScanViews};
+use ggs::cloud::Point;
+use ggs::error::{GgsError, Result};
+use ggs::transform::Rigid;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
@@ -147,82 +147,16 @@ pub fn rebuild(
     let mut view_csv = String::new();
     let total = by_scan.len();
     for (done, (scan, rows)) in by_scan.iter().enumerate() {
-        let Some(path) = find_scan(scans_dir, scan) else {
-            missing.push(scan.clone());
-            progress(done + 1, total, scan);
-            continue;
-        };
-        // Cameras by published index; one index must always name the same position.
-        let mut cams: BTreeMap<u32, (Point, usize)> = BTreeMap::new();
-        for r in rows {
-            for (v, c) in [(r.view_i, r.camera_i), (r.view_j, r.camera_j)] {
-                let e = cams.entry(v).or_insert((c, r.line));
-                if e.0 != c {
-                    return Err(GgsError::at_line(
-                        csv,
-                        r.line,
-                        format!(
-                            "{scan}: viewpoint{v} is at {c:?} here but at {:?} on line {}",
-                            e.0, e.1
-                        ),
-                    ));
-                }
+        match find_scan(scans_dir, scan) {
+            None => missing.push(scan.clone()),
+            Some(path) => {
+                let views = scan_views(csv, &path, scan, rows, cfg)?;
+                let pairs = published_pairs(scan, rows, &views, &mut checks);
+                scans.push(output::write_scan(out, &views, &pairs)?);
+                view_csv.push_str(&output::view_rows(&views));
+                pairs_all.extend(pairs);
             }
         }
-        let points = crate::io::read_cloud(&path, None)?.cloud.points;
-        let input = ScanInput {
-            name: scan.clone(),
-            ..ScanInput::new(&path)
-        };
-        let mut views = views_of_points(
-            scan,
-            points,
-            false,
-            &input,
-            cfg,
-            Some(cams.values().map(|c| c.0).collect()),
-        )?;
-        views.view_ids = cams.keys().copied().collect();
-        let slot = |id: u32| {
-            views
-                .view_ids
-                .iter()
-                .position(|&v| v == id)
-                .expect("camera")
-        };
-        let mut names = std::collections::HashSet::new();
-        let mut pairs = Vec::new();
-        for r in rows {
-            let recomputed = super::overlap::overlap_percent(
-                &views.visible[slot(r.view_i)],
-                &views.visible[slot(r.view_j)],
-            );
-            let mut name = format!("{scan}_{}_{}", r.view_i, r.view_j);
-            let mut k = 1;
-            while !names.insert(name.clone()) {
-                k += 1;
-                name = format!("{scan}_{}_{}-{k}", r.view_i, r.view_j);
-            }
-            checks.push(OverlapCheck {
-                pair: name.clone(),
-                published: r.overlap,
-                recomputed,
-            });
-            let (rot, t) = (r.transform.rotation, r.transform.translation);
-            pairs.push(GeneratedPair {
-                name,
-                scan: scan.clone(),
-                view_i: r.view_i,
-                view_j: r.view_j,
-                overlap: recomputed,
-                euler_deg: euler_xyz_of(&rot),
-                transform: Rigid::new(rot, t),
-                voxel: views.voxel,
-            });
-        }
-        scans.push(output::write_scan(out, &views, &pairs)?);
-        view_csv.push_str(&output::view_rows(&views));
-        pairs_all.extend(pairs);
         progress(done + 1, total, scan);
     }
     if scans.is_empty() {
@@ -246,8 +180,102 @@ pub fn rebuild(
         cfg.flip_factor
     );
     output::write_index(out, &comment, &pairs_all, &view_csv, &summary)?;
+    write_overlap_checks(out, &checks)?;
+    Ok(Rebuilt {
+        summary,
+        pairs: pairs_all,
+        checks,
+        missing_scans: missing,
+    })
+}
+
+/// The views of one scan from its published cameras, in the order of their indices. One
+/// index must always name the same position (an error names the two lines otherwise).
+fn scan_views(
+    csv: &Path,
+    path: &Path,
+    scan: &str,
+    rows: &[&Fpv1Row],
+    cfg: &GeneratorConfig,
+) -> Result<ScanViews> {
+    let mut cams: BTreeMap<u32, (Point, usize)> = BTreeMap::new();
+    for r in rows {
+        for (v, c) in [(r.view_i, r.camera_i), (r.view_j, r.camera_j)] {
+            let e = cams.entry(v).or_insert((c, r.line));
+            if e.0 != c {
+                return Err(GgsError::at_line(
+                    csv,
+                    r.line,
+                    format!(
+                        "{scan}: viewpoint{v} is at {c:?} here but at {:?} on line {}",
+                        e.0, e.1
+                    ),
+                ));
+            }
+        }
+    }
+    let points = ggs::io::read_cloud(path, None)?.cloud.points;
+    let input = ScanInput {
+        name: scan.to_string(),
+        ..ScanInput::new(path)
+    };
+    let cameras = cams.values().map(|c| c.0).collect();
+    let mut views = views_of_points(scan, points, false, &input, cfg, Some(cameras))?;
+    views.view_ids = cams.keys().copied().collect();
+    Ok(views)
+}
+
+/// The published pairs of one scan with their overlaps recomputed (each also recorded in
+/// `checks` next to the published value). Repeated view pairs get a `-2`, `-3`, … suffix.
+fn published_pairs(
+    scan: &str,
+    rows: &[&Fpv1Row],
+    views: &ScanViews,
+    checks: &mut Vec<OverlapCheck>,
+) -> Vec<GeneratedPair> {
+    let slot: BTreeMap<u32, usize> = views
+        .view_ids
+        .iter()
+        .enumerate()
+        .map(|(i, &v)| (v, i))
+        .collect();
+    let mut names = std::collections::HashSet::new();
+    let mut pairs = Vec::new();
+    for r in rows {
+        let recomputed = super::overlap::overlap_percent(
+            &views.visible[slot[&r.view_i]],
+            &views.visible[slot[&r.view_j]],
+        );
+        let mut name = format!("{scan}_{}_{}", r.view_i, r.view_j);
+        let mut k = 1;
+        while !names.insert(name.clone()) {
+            k += 1;
+            name = format!("{scan}_{}_{}-{k}", r.view_i, r.view_j);
+        }
+        checks.push(OverlapCheck {
+            pair: name.clone(),
+            published: r.overlap,
+            recomputed,
+        });
+        let (rot, t) = (r.transform.rotation, r.transform.translation);
+        pairs.push(GeneratedPair {
+            name,
+            scan: scan.to_string(),
+            view_i: r.view_i,
+            view_j: r.view_j,
+            overlap: recomputed,
+            euler_deg: euler_xyz_of(&rot),
+            transform: Rigid::new(rot, t),
+            voxel: views.voxel,
+        });
+    }
+    pairs
+}
+
+/// `overlap_check.csv`: each pair's published and recomputed overlap and their difference.
+fn write_overlap_checks(out: &Path, checks: &[OverlapCheck]) -> Result<()> {
     let mut check_csv = String::from("pair,published_overlap,recomputed_overlap,difference\n");
-    for c in &checks {
+    for c in checks {
         check_csv.push_str(&format!(
             "{},{},{},{}\n",
             c.pair,
@@ -256,13 +284,7 @@ pub fn rebuild(
             c.recomputed - c.published
         ));
     }
-    crate::io::write_atomic(&out.join("overlap_check.csv"), check_csv.as_bytes())?;
-    Ok(Rebuilt {
-        summary,
-        pairs: pairs_all,
-        checks,
-        missing_scans: missing,
-    })
+    ggs::io::write_atomic(&out.join("overlap_check.csv"), check_csv.as_bytes())
 }
 
 /// Euler 'xyz' angles (degrees) of a rotation `R = R_z(γ)·R_y(β)·R_x(α)`.

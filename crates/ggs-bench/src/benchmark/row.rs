@@ -7,7 +7,7 @@
 //! row written, and a resumed run ends with the same file as an uninterrupted one (except the
 //! `*_ms` timing columns).
 
-use crate::error::{GgsError, Result};
+use ggs::error::{GgsError, Result};
 use std::fs::{File, OpenOptions};
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -343,12 +343,12 @@ impl ResultsCsv {
             Ok(text) => {
                 let (rows, complete) = parse(path, &text)?;
                 if complete.len() != text.len() {
-                    crate::io::write_atomic(path, complete.as_bytes())?;
+                    ggs::io::write_atomic(path, complete.as_bytes())?;
                 }
                 rows
             }
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
-                crate::io::write_atomic(path, format!("{}\n", header()).as_bytes())?;
+                ggs::io::write_atomic(path, format!("{}\n", header()).as_bytes())?;
                 Vec::new()
             }
             Err(e) => return Err(GgsError::io(path, e)),

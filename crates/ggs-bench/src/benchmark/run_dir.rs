@@ -12,7 +12,7 @@ use super::plan::Plan;
 use super::row::{header, PairRow, ResultsCsv};
 use super::shard::write_shard_file;
 use super::{html, pin_json, report, run_pair_pictured, RunConfig, RunOutcome};
-use crate::error::{GgsError, Result};
+use ggs::error::{GgsError, Result};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -122,7 +122,7 @@ impl RunDir {
             text += &(r.to_csv() + "\n");
         }
         drop(self.csv);
-        crate::io::write_atomic(&self.out.join("pairs.csv"), text.as_bytes())?;
+        ggs::io::write_atomic(&self.out.join("pairs.csv"), text.as_bytes())?;
         let summary = finish_run(self.name, &rows, self.metres, &self.out)?;
         Ok(RunOutcome {
             rows,
@@ -174,7 +174,7 @@ fn save_picture(path: &Path, png: &[u8]) -> Result<()> {
     if let Some(dir) = path.parent() {
         std::fs::create_dir_all(dir).map_err(|e| GgsError::io(dir, e))?;
     }
-    crate::io::write_atomic(path, png)
+    ggs::io::write_atomic(path, png)
 }
 
 /// Write the files of a finished run from its rows: `results.json` (summary and rows),
@@ -187,8 +187,7 @@ pub(crate) fn finish_run(
 ) -> Result<report::Summary> {
     let summary = report::Summary::of(name, rows);
     let json = serde_json::json!({ "summary": &summary, "pairs": rows });
-    let write =
-        |file: &str, text: String| crate::io::write_atomic(&out.join(file), text.as_bytes());
+    let write = |file: &str, text: String| ggs::io::write_atomic(&out.join(file), text.as_bytes());
     write(
         "results.json",
         serde_json::to_string_pretty(&json).expect("rows serialize") + "\n",
@@ -209,7 +208,7 @@ pub(crate) fn finish_run(
 mod tests {
     use super::*;
     use crate::benchmark::plan::Selection;
-    use crate::pipeline::{Preset, RegistrationConfig};
+    use ggs::pipeline::{Preset, RegistrationConfig};
 
     /// A manifest of the bundled small pair three times under other names.
     fn plan(dir: &Path) -> Plan {

@@ -12,17 +12,18 @@
 pub mod fpv1;
 pub mod hpr;
 pub mod hull;
+pub mod options;
 pub mod output;
 pub mod overlap;
 pub mod presets;
-pub use crate::mesh::sampling;
-pub use crate::rng;
+pub use ggs::mesh::sampling;
+pub use ggs::rng;
 pub mod viewpoints;
 
-use crate::cloud::Point;
-use crate::error::{GgsError, Result};
-use crate::io::{self, mesh::Mesh, Format};
-use crate::transform::Rigid;
+use ggs::cloud::Point;
+use ggs::error::{GgsError, Result};
+use ggs::io::{self, mesh::Mesh, Format};
+use ggs::transform::Rigid;
 use presets::{OverlapBand, Preset};
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
@@ -293,7 +294,7 @@ pub fn views_of_points(
         .map(|p| [p[0] + offset[0], p[1] + offset[1], p[2] + offset[2]])
         .collect();
     let radius = hpr::flip_radius(&floor, cfg.flip_factor);
-    let (pool, _) = crate::threads::pool(cfg.threads)?;
+    let (pool, _) = ggs::threads::pool(cfg.threads)?;
     let visible: Vec<hpr::Visible> = pool
         .install(|| {
             cameras

@@ -12,7 +12,7 @@
 use super::row::{PairRow, ResultsCsv};
 use super::run_dir::finish_run;
 use super::{BenchPair, RunOutcome};
-use crate::error::{GgsError, Result};
+use ggs::error::{GgsError, Result};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
@@ -143,12 +143,12 @@ pub fn merge(dirs: &[PathBuf], out: &Path) -> Result<RunOutcome> {
         rows.push(row);
     }
     std::fs::create_dir_all(out).map_err(|e| GgsError::io(out, e))?;
-    crate::io::write_atomic(&out.join("run.json"), run_json.as_bytes())?;
+    ggs::io::write_atomic(&out.join("run.json"), run_json.as_bytes())?;
     let mut text = super::row::header() + "\n";
     for r in &rows {
         text += &(r.to_csv() + "\n");
     }
-    crate::io::write_atomic(&out.join("pairs.csv"), text.as_bytes())?;
+    ggs::io::write_atomic(&out.join("pairs.csv"), text.as_bytes())?;
     copy_pictures(&runs, &rows, out)?;
     let protocol: serde_json::Value = serde_json::from_str(&run_json).unwrap_or_default();
     let name = protocol["protocol"]
@@ -210,7 +210,7 @@ fn copy_pictures(runs: &[ShardRun], rows: &[PairRow], out: &Path) -> Result<()> 
                 let dir = to.parent().expect("in gallery/");
                 std::fs::create_dir_all(dir).map_err(|e| GgsError::io(dir, e))?;
                 let bytes = std::fs::read(&from).map_err(|e| GgsError::io(&from, e))?;
-                crate::io::write_atomic(&to, &bytes)?;
+                ggs::io::write_atomic(&to, &bytes)?;
                 break;
             }
         }

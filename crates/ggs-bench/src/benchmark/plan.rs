@@ -4,9 +4,9 @@
 
 use super::shard::{Shard, ShardFile};
 use super::{missing_files, BenchPair, Protocol, RunConfig};
-use crate::error::{GgsError, Result};
-use crate::pipeline::RegistrationConfig;
-use crate::rotations::RotationSet;
+use ggs::error::{GgsError, Result};
+use ggs::pipeline::RegistrationConfig;
+use ggs::rotations::RotationSet;
 use std::path::PathBuf;
 
 /// Which pairs to run and the protocol's thresholds, as a user gives them.

@@ -2,8 +2,8 @@
 //! `name  source  target  T(16 numbers, row-major)  gt_quality  suggested_voxel`, `#` comments.
 //! Source and target paths are relative to the manifest's folder unless absolute.
 
-use crate::error::{GgsError, Result};
-use crate::transform::Rigid;
+use ggs::error::{GgsError, Result};
+use ggs::transform::Rigid;
 use std::path::{Path, PathBuf};
 
 /// One registration pair with its ground truth, `p_target = T · p_source`.

@@ -1,12 +1,12 @@
 //! Stage benchmarks on the bundled PCL bunny pair (tests/data, ~400 points each):
-//! `cargo bench -p ggs`. For the large real pairs see docs/coarse-search.md and
+//! `cargo bench -p ggs-bench --bench pipeline`. For the large real pairs see docs/coarse-search.md and
 //! docs/refinement.md (whole-process timings with `ggs register --json`).
 
 use criterion::{criterion_group, criterion_main, Criterion};
+use ggs::coarse::{coarse_register, SearchConfig};
 use ggs::io::read_cloud;
 use ggs::refine::{refine, RefineConfig};
 use ggs::rotations::RotationSet;
-use ggs::coarse::{coarse_register, SearchConfig};
 use std::path::PathBuf;
 
 fn data(name: &str) -> ggs::Cloud {
@@ -48,7 +48,7 @@ criterion_main!(benches);
 
 /// Hidden point removal of 200 000 points sampled on the bundled SMPL body, one camera.
 fn partial_views(c: &mut Criterion) {
-    use ggs::generator::{hpr, sampling, viewpoints};
+    use ggs_bench::generator::{hpr, sampling, viewpoints};
     let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../tests/data/human_woman.obj");
     let bytes = std::fs::read(&p).expect("bundled mesh");
     let mesh = ggs::io::mesh::parse_obj(&p, &bytes).expect("mesh");

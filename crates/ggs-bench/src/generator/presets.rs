@@ -13,7 +13,7 @@
 //! about the fixed y by β, then about the fixed z by γ, so `R = R_z(γ)·R_y(β)·R_x(α)`.
 
 use super::rng::Rng;
-use crate::transform::Rigid;
+use ggs::transform::Rigid;
 use nalgebra::{Matrix3, Vector3};
 
 /// Difficulty level of an EGS variant.

@@ -9,16 +9,17 @@
 //! the rank of the right pose among the verified hypotheses (`cargo test --release -p ggs
 //! --test pipeline -- --nocapture`).
 
+#[path = "../../ggs/tests/common/mod.rs"]
 mod common;
 
-use ggs::benchmark::motion::random_motion;
 use ggs::io::read_cloud;
-use ggs::manifest::read_manifest;
 use ggs::metrics::{is_success, rre, rte};
 use ggs::pipeline::{point_spacing, register, verify, Registration, RegistrationConfig, VoxelSize};
 use ggs::refine::{refine, PreparedPair, RefineConfig};
 use ggs::transform::Rigid;
 use ggs::Cloud;
+use ggs_bench::benchmark::motion::random_motion;
+use ggs_bench::manifest::read_manifest;
 use nalgebra::{Rotation3, Vector3};
 
 /// The two ≈ 20 %-overlap pairs that no configuration here solves (see docs/pipeline.md).
@@ -39,7 +40,7 @@ fn config_with(voxel: VoxelSize, threads: usize) -> RegistrationConfig {
 /// Rank (in coarse order) of the first verified hypothesis within 10° and 3 voxels.
 fn right_rank(reg: &Registration, truth: &Rigid) -> Option<usize> {
     reg.verification.as_ref()?;
-    ggs::benchmark::right_pose_rank(reg, truth, 10.0, 3.0 * reg.voxel)
+    ggs_bench::benchmark::right_pose_rank(reg, truth, 10.0, 3.0 * reg.voxel)
 }
 
 #[test]
