@@ -19,6 +19,45 @@ pub struct Pair {
     pub voxel: f64,
 }
 
+/// The manifest's first line: the columns, as a comment.
+pub const HEADER: &str = "# name\tsource\ttarget\tT (16 numbers, row-major; p_target = T * p_source)\tgt_quality\tsuggested_voxel_m";
+
+/// The text of a manifest: [`HEADER`], one `# ` line per comment, one line per pair (paths as
+/// given, T row-major in Rust's shortest round-trip form, so reading it back gives the same
+/// bits).
+pub fn manifest_text(comments: &[&str], pairs: &[Pair]) -> String {
+    use std::fmt::Write;
+    let mut tsv = format!("{HEADER}\n");
+    for c in comments {
+        let _ = writeln!(tsv, "# {c}");
+    }
+    for p in pairs {
+        let m: Vec<String> = p
+            .ground_truth
+            .to_rows()
+            .concat()
+            .iter()
+            .map(|v| format!("{v}"))
+            .collect();
+        let _ = writeln!(
+            tsv,
+            "{}\t{}\t{}\t{}\t{}\t{}",
+            p.name,
+            p.source.display(),
+            p.target.display(),
+            m.join(" "),
+            p.gt_quality,
+            p.voxel
+        );
+    }
+    tsv
+}
+
+/// Writes a manifest atomically (a temporary file, then a rename).
+pub fn write_manifest(path: &Path, comments: &[&str], pairs: &[Pair]) -> Result<()> {
+    ggs::io::write_atomic(path, manifest_text(comments, pairs).as_bytes())
+}
+
 /// Read a manifest file.
 pub fn read_manifest(path: &Path) -> Result<Vec<Pair>> {
     let text = std::fs::read_to_string(path).map_err(|e| GgsError::io(path, e))?;
@@ -92,6 +131,38 @@ pub fn parse_manifest(path: &Path, base: &Path, text: &str) -> Result<Vec<Pair>>
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn written_manifests_read_back_bit_for_bit() {
+        let t = Rigid::from_row_major(
+            &[
+                0.825336, 0.0, -0.564642, 0.037267, 0.0, 1.0, 0.0, 0.0, 0.564642, 0.0, 0.825336,
+                0.038325, 0.0, 0.0, 0.0, 1.0,
+            ],
+            1e-3,
+        )
+        .unwrap();
+        let pair = Pair {
+            name: "a".into(),
+            source: "views/s/1.ply".into(),
+            target: "pairs/a.ply".into(),
+            ground_truth: t,
+            gt_quality: "exact".into(),
+            voxel: 0.06,
+        };
+        let text = manifest_text(&["made by a test"], std::slice::from_ref(&pair));
+        assert!(text.starts_with(HEADER));
+        assert!(text.contains("\n# made by a test\n"));
+        let back = parse_manifest(Path::new("m.tsv"), Path::new("/base"), &text).unwrap();
+        assert_eq!(back.len(), 1);
+        assert_eq!(back[0].name, "a");
+        assert_eq!(back[0].source, Path::new("/base/views/s/1.ply"));
+        assert_eq!(back[0].ground_truth.to_rows(), t.to_rows());
+        assert_eq!(
+            (back[0].voxel, back[0].gt_quality.as_str()),
+            (0.06, "exact")
+        );
+    }
 
     const T: &str = "1 0 0 0.5 0 1 0 0 0 0 1 0 0 0 0 1";
 

@@ -261,8 +261,41 @@ fn command_line() -> String {
 }
 
 fn print_summary(reg: &Registration, preset: &str, read_ms: f64, total_ms: f64) -> Result<()> {
+    print_search(reg, preset)?;
+    match &reg.verification {
+        Some(v) => print_verification(v)?,
+        None => {
+            for (i, h) in reg.search.hypotheses.iter().enumerate().skip(1) {
+                outln!(
+                    "hypothesis  {}: rotation #{} match {}",
+                    i + 1,
+                    h.rotation_index,
+                    h.match_score
+                );
+            }
+        }
+    }
+    outln!(
+        "confidence  {:.3}{}",
+        reg.confidence,
+        if reg.ambiguous {
+            " AMBIGUOUS: two distinct poses explain the data about equally well"
+        } else {
+            ""
+        }
+    );
+    print_grids(&reg.search)?;
+    let t = &reg.timings;
+    outln!(
+        "time        {:.0} ms total: read {:.0}, search {:.0}, verify {:.0}, refine {:.0} ms on {} thread(s)",
+        total_ms, read_ms, t.search_ms, t.verify_ms, t.refine_ms, reg.search.stats.threads
+    );
+    Ok(())
+}
+
+/// The voxel, the search, the coarse winner and its ambiguity.
+fn print_search(reg: &Registration, preset: &str) -> Result<()> {
     let r = &reg.search;
-    let g = &r.stats.geometry;
     outln!();
     outln!(
         "voxel       {}{}",
@@ -296,28 +329,12 @@ fn print_summary(reg: &Registration, preset: &str, read_ms: f64, total_ms: f64) 
         ),
         _ => outln!("ambiguity   n/a"),
     }
-    match &reg.verification {
-        Some(v) => print_verification(v)?,
-        None => {
-            for (i, h) in r.hypotheses.iter().enumerate().skip(1) {
-                outln!(
-                    "hypothesis  {}: rotation #{} match {}",
-                    i + 1,
-                    h.rotation_index,
-                    h.match_score
-                );
-            }
-        }
-    }
-    outln!(
-        "confidence  {:.3}{}",
-        reg.confidence,
-        if reg.ambiguous {
-            " AMBIGUOUS: two distinct poses explain the data about equally well"
-        } else {
-            ""
-        }
-    );
+    Ok(())
+}
+
+/// The grids of the search, its representatives and its coarse level.
+fn print_grids(r: &coarse::SearchResult) -> Result<()> {
+    let g = &r.stats.geometry;
     outln!(
         "grids       target {}×{}×{} ({} occupied), source ≤ {}×{}×{}, FFT {}×{}×{}",
         g.kernel_dims[0],
@@ -346,11 +363,6 @@ fn print_summary(reg: &Registration, preset: &str, read_ms: f64, total_ms: f64) 
             c.voxel, c.source_points, f[0], f[1], f[2], c.kept, r.stats.rotations, c.rounds, c.winner_rank, c.neighbour_deg, r.stats.scored
         );
     }
-    let t = &reg.timings;
-    outln!(
-        "time        {:.0} ms total: read {:.0}, search {:.0}, verify {:.0}, refine {:.0} ms on {} thread(s)",
-        total_ms, read_ms, t.search_ms, t.verify_ms, t.refine_ms, r.stats.threads
-    );
     Ok(())
 }
 

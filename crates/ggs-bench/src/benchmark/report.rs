@@ -190,25 +190,72 @@ pub fn recall_curves_svg(title: &str, rows: &[PairRow]) -> String {
             .into_iter()
             .enumerate()
     {
-        let x0 = panel as f64 * W + M;
-        let (pw, ph) = (W - M - 12.0, H - M - 12.0);
-        let top = 24.0 + 8.0;
-        let x_max = if limit > 0.0 { 2.0 * limit } else { 1.0 };
-        let px = |x: f64| x0 + pw * x / x_max;
-        let py = |y: f64| top + ph * (1.0 - y);
+        let frame = Panel {
+            x0: panel as f64 * W + M,
+            top: 24.0 + 8.0,
+            width: W - M - 12.0,
+            height: H - M - 12.0,
+            x_max: if limit > 0.0 { 2.0 * limit } else { 1.0 },
+        };
+        svg += &frame.axes(label);
+        // The protocol's threshold.
         svg += &format!(
+            "<line x1=\"{0}\" y1=\"{1}\" x2=\"{0}\" y2=\"{2}\" stroke=\"#c33\" stroke-dasharray=\"4 3\"/>\n",
+            frame.px(limit),
+            frame.top,
+            frame.top + frame.height
+        );
+        let points: Vec<String> = (0..=200)
+            .map(|k| {
+                let x = frame.x_max * k as f64 / 200.0;
+                let y = recall_at(rows, x, rotation, relative);
+                format!("{:.1},{:.1}", frame.px(x), frame.py(y))
+            })
+            .collect();
+        svg += &format!(
+            "<polyline fill=\"none\" stroke=\"#1f5fbf\" stroke-width=\"2\" points=\"{}\"/>\n",
+            points.join(" ")
+        );
+    }
+    svg += "</svg>\n";
+    svg
+}
+
+/// One panel of the recall curves: its frame in SVG units and its x range `[0, x_max]`
+/// (recall runs from 0 to 1 upwards).
+struct Panel {
+    x0: f64,
+    top: f64,
+    width: f64,
+    height: f64,
+    x_max: f64,
+}
+
+impl Panel {
+    fn px(&self, x: f64) -> f64 {
+        self.x0 + self.width * x / self.x_max
+    }
+
+    fn py(&self, y: f64) -> f64 {
+        self.top + self.height * (1.0 - y)
+    }
+
+    /// The frame, five ticks on each axis and the x label.
+    fn axes(&self, label: &str) -> String {
+        let (x0, top, pw, ph) = (self.x0, self.top, self.width, self.height);
+        let mut svg = format!(
             "<rect x=\"{x0}\" y=\"{top}\" width=\"{pw}\" height=\"{ph}\" fill=\"none\" stroke=\"#888\"/>\n"
         );
         for k in 0..=4 {
             let y = k as f64 / 4.0;
-            let x = x_max * k as f64 / 4.0;
+            let x = self.x_max * k as f64 / 4.0;
             svg += &format!(
                 "<text x=\"{}\" y=\"{}\" text-anchor=\"end\">{}%</text>\n\
                  <text x=\"{}\" y=\"{}\" text-anchor=\"middle\">{}</text>\n",
                 x0 - 4.0,
-                py(y) + 4.0,
+                self.py(y) + 4.0,
                 (100.0 * y) as u32,
-                px(x),
+                self.px(x),
                 top + ph + 14.0,
                 trim(x)
             );
@@ -219,30 +266,8 @@ pub fn recall_curves_svg(title: &str, rows: &[PairRow]) -> String {
             top + ph + 30.0,
             label
         );
-        // The protocol's threshold.
-        svg += &format!(
-            "<line x1=\"{0}\" y1=\"{1}\" x2=\"{0}\" y2=\"{2}\" stroke=\"#c33\" stroke-dasharray=\"4 3\"/>\n",
-            px(limit),
-            top,
-            top + ph
-        );
-        let points: Vec<String> = (0..=200)
-            .map(|k| {
-                let x = x_max * k as f64 / 200.0;
-                format!(
-                    "{:.1},{:.1}",
-                    px(x),
-                    py(recall_at(rows, x, rotation, relative))
-                )
-            })
-            .collect();
-        svg += &format!(
-            "<polyline fill=\"none\" stroke=\"#1f5fbf\" stroke-width=\"2\" points=\"{}\"/>\n",
-            points.join(" ")
-        );
+        svg
     }
-    svg += "</svg>\n";
-    svg
 }
 
 /// At most 6 decimals, trailing zeros dropped.

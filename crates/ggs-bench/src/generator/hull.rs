@@ -243,6 +243,43 @@ impl<'a> Builder<'a> {
     }
 
     fn build(mut self, simplex: [u32; 4]) -> Hull {
+        let ids = self.tetrahedron(simplex);
+        for p in 0..self.pts.len() as u32 {
+            if simplex.contains(&p) {
+                continue;
+            }
+            self.file_point(p, &ids);
+        }
+        let mut pending: Vec<u32> = ids;
+        let mut step = Step::default();
+        while let Some(f) = pending.pop() {
+            let face = &self.faces[f as usize];
+            if !face.alive || face.outside == NONE {
+                continue;
+            }
+            let eye = face.furthest;
+            self.horizon(f, eye, &mut step.visible, &mut step.horizon);
+            let h = &step.horizon;
+            let m = h.len();
+            if !(m >= 3 && (0..m).all(|i| h[i].1 == h[(i + 1) % m].0)) {
+                // The horizon is not one closed loop (rounding): give up on this eye.
+                self.skipped += 1;
+                self.drop_outside(f, eye);
+                pending.push(f);
+                continue;
+            }
+            self.add_cone(eye, &mut step);
+            for &nf in step.new_faces.iter() {
+                if self.faces[nf as usize].outside != NONE {
+                    pending.push(nf);
+                }
+            }
+        }
+        self.into_hull()
+    }
+
+    /// The four faces of the starting simplex, oriented outwards and linked.
+    fn tetrahedron(&mut self, simplex: [u32; 4]) -> Vec<u32> {
         let [a, mut b, mut c, d] = simplex;
         // Orient outwards: with d below the plane of (a, b, c), the four faces below are
         // counter-clockwise seen from outside.
@@ -274,63 +311,44 @@ impl<'a> Builder<'a> {
                 self.faces[f as usize].adj[k] = g;
             }
         }
-        for p in 0..self.pts.len() as u32 {
-            if simplex.contains(&p) {
-                continue;
-            }
-            self.file_point(p, &ids);
+        ids
+    }
+
+    /// Replaces the visible faces by a cone from `eye` over the horizon: new faces linked to
+    /// the faces beyond the horizon and to each other, the visible faces' outside points
+    /// filed to the new faces, the visible faces freed.
+    fn add_cone(&mut self, eye: u32, step: &mut Step) {
+        let m = step.horizon.len();
+        step.new_faces.clear();
+        for &(p, q, beyond, back) in step.horizon.iter() {
+            let nf = self.new_face([p, q, eye]);
+            self.faces[nf as usize].adj[0] = beyond;
+            self.faces[beyond as usize].adj[back] = nf;
+            step.new_faces.push(nf);
         }
-        let mut pending: Vec<u32> = ids.clone();
-        let mut visible = Vec::new();
-        let mut horizon = Vec::new();
-        let mut new_faces: Vec<u32> = Vec::new();
-        while let Some(f) = pending.pop() {
-            let face = &self.faces[f as usize];
-            if !face.alive || face.outside == NONE {
-                continue;
-            }
-            let eye = face.furthest;
-            self.horizon(f, eye, &mut visible, &mut horizon);
-            let m = horizon.len();
-            let closed = m >= 3 && (0..m).all(|i| horizon[i].1 == horizon[(i + 1) % m].0);
-            if !closed {
-                self.skipped += 1;
-                self.drop_outside(f, eye);
-                pending.push(f);
-                continue;
-            }
-            new_faces.clear();
-            for &(p, q, beyond, back) in horizon.iter() {
-                let nf = self.new_face([p, q, eye]);
-                self.faces[nf as usize].adj[0] = beyond;
-                self.faces[beyond as usize].adj[back] = nf;
-                new_faces.push(nf);
-            }
-            for i in 0..m {
-                let nf = new_faces[i] as usize;
-                self.faces[nf].adj[1] = new_faces[(i + 1) % m];
-                self.faces[nf].adj[2] = new_faces[(i + m - 1) % m];
-            }
-            for &vf in visible.iter() {
-                let mut cur = self.faces[vf as usize].outside;
-                while cur != NONE {
-                    let nx = self.next[cur as usize];
-                    if cur != eye {
-                        self.file_point(cur, &new_faces);
-                    }
-                    cur = nx;
-                }
-                let face = &mut self.faces[vf as usize];
-                face.alive = false;
-                face.outside = NONE;
-            }
-            self.free.extend_from_slice(&visible);
-            for &nf in new_faces.iter() {
-                if self.faces[nf as usize].outside != NONE {
-                    pending.push(nf);
-                }
-            }
+        for i in 0..m {
+            let nf = step.new_faces[i] as usize;
+            self.faces[nf].adj[1] = step.new_faces[(i + 1) % m];
+            self.faces[nf].adj[2] = step.new_faces[(i + m - 1) % m];
         }
+        for &vf in step.visible.iter() {
+            let mut cur = self.faces[vf as usize].outside;
+            while cur != NONE {
+                let nx = self.next[cur as usize];
+                if cur != eye {
+                    self.file_point(cur, &step.new_faces);
+                }
+                cur = nx;
+            }
+            let face = &mut self.faces[vf as usize];
+            face.alive = false;
+            face.outside = NONE;
+        }
+        self.free.extend_from_slice(&step.visible);
+    }
+
+    /// The live faces and the points they use.
+    fn into_hull(self) -> Hull {
         let mut is_vertex = vec![false; self.pts.len()];
         let mut triangles = Vec::new();
         for f in self.faces.iter().filter(|f| f.alive) {
@@ -348,6 +366,15 @@ impl<'a> Builder<'a> {
             skipped: self.skipped,
         }
     }
+}
+
+/// Buffers of one step of the hull's growth, reused across steps.
+#[derive(Default)]
+struct Step {
+    visible: Vec<u32>,
+    /// Horizon edges `(p, q, face beyond, its edge index)`, in loop order.
+    horizon: Vec<(u32, u32, u32, usize)>,
+    new_faces: Vec<u32>,
 }
 
 /// The convex hull of `pts`.

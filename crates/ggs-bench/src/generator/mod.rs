@@ -192,36 +192,7 @@ pub fn load_scan(input: &ScanInput, cfg: &GeneratorConfig) -> Result<(Vec<Point>
     }
     let scale = |p: Point| p.map(|c| c * input.scale);
     match mesh {
-        Some(mut m) => {
-            if let Some(g) = &input.group {
-                m = m.group(g).map_err(|e| GgsError::in_file(path, e))?;
-            }
-            for v in &mut m.vertices {
-                *v = scale(*v);
-            }
-            let count = match input.sample.unwrap_or(cfg.sample) {
-                SampleSize::Count(n) => n,
-                SampleSize::Spacing(s) => {
-                    if !(s.is_finite() && s > 0.0) {
-                        return Err(GgsError::param(
-                            "spacing",
-                            format!("must be positive, got {s}"),
-                        ));
-                    }
-                    sampling::count_for_spacing(&m, s)
-                }
-            };
-            if count < 4 {
-                return Err(GgsError::param(
-                    "points",
-                    format!("{count} samples are too few for a view (at least 4)"),
-                ));
-            }
-            let seed = rng::Rng::stream(cfg.seed, &[0x5343_414e, name_tag(&input.name)]).next_u64();
-            let pts = sampling::sample_surface(&m, count, seed)
-                .map_err(|e| GgsError::in_file(path, e))?;
-            Ok((pts, true))
-        }
+        Some(m) => Ok((sample_mesh(input, cfg, m)?, true)),
         None => {
             let points = match vertices_only {
                 // As read_cloud does: points with a NaN or infinite coordinate are dropped.
@@ -240,6 +211,38 @@ pub fn load_scan(input: &ScanInput, cfg: &GeneratorConfig) -> Result<(Vec<Point>
             Ok((points.into_iter().map(scale).collect(), false))
         }
     }
+}
+
+/// Points sampled on a mesh (its group, if one is asked for), scaled, seeded by the scan's
+/// name: as many as asked for, or as the spacing asks for.
+fn sample_mesh(input: &ScanInput, cfg: &GeneratorConfig, mut m: Mesh) -> Result<Vec<Point>> {
+    let path = &input.path;
+    if let Some(g) = &input.group {
+        m = m.group(g).map_err(|e| GgsError::in_file(path, e))?;
+    }
+    for v in &mut m.vertices {
+        *v = v.map(|c| c * input.scale);
+    }
+    let count = match input.sample.unwrap_or(cfg.sample) {
+        SampleSize::Count(n) => n,
+        SampleSize::Spacing(s) => {
+            if !(s.is_finite() && s > 0.0) {
+                return Err(GgsError::param(
+                    "spacing",
+                    format!("must be positive, got {s}"),
+                ));
+            }
+            sampling::count_for_spacing(&m, s)
+        }
+    };
+    if count < 4 {
+        return Err(GgsError::param(
+            "points",
+            format!("{count} samples are too few for a view (at least 4)"),
+        ));
+    }
+    let seed = rng::Rng::stream(cfg.seed, &[0x5343_414e, name_tag(&input.name)]).next_u64();
+    sampling::sample_surface(&m, count, seed).map_err(|e| GgsError::in_file(path, e))
 }
 
 /// A stable 64-bit tag of a name (FNV-1a), so streams depend on the scan's name, not on

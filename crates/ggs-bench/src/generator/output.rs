@@ -14,6 +14,7 @@
 //! Every file is written atomically; nothing in them depends on time or thread count.
 
 use super::{GeneratedPair, ScanViews};
+use crate::manifest::{write_manifest, Pair};
 use ggs::cloud::Point;
 use ggs::error::{GgsError, Result};
 use ggs::io::{ply, write_atomic};
@@ -254,33 +255,11 @@ pub fn write_index(
     view_csv: &str,
     summary: &Summary,
 ) -> Result<()> {
-    let mut tsv = String::new();
-    let _ = writeln!(
-        tsv,
-        "# name\tsource\ttarget\tT (16 numbers, row-major; p_target = T * p_source)\tgt_quality\tsuggested_voxel_m"
-    );
-    let _ = writeln!(tsv, "# {header_comment}");
     let mut list = String::from(
         "name,scan,view_i,view_j,overlap,euler_x_deg,euler_y_deg,euler_z_deg,tx,ty,tz\n",
     );
     for p in pairs {
         let scan = &p.scan;
-        let m: Vec<String> = p
-            .transform
-            .to_rows()
-            .concat()
-            .iter()
-            .map(|v| format!("{v}"))
-            .collect();
-        let _ = writeln!(
-            tsv,
-            "{}\tviews/{scan}/{}.ply\tpairs/{}.ply\t{}\texact\t{}",
-            p.name,
-            p.view_j,
-            p.name,
-            m.join(" "),
-            p.voxel
-        );
         let t = p.transform.translation;
         let _ = writeln!(
             list,
@@ -297,7 +276,18 @@ pub fn write_index(
             t[2]
         );
     }
-    write_atomic(&out.join("pairs.tsv"), tsv.as_bytes())?;
+    let manifest: Vec<Pair> = pairs
+        .iter()
+        .map(|p| Pair {
+            name: p.name.clone(),
+            source: format!("views/{}/{}.ply", p.scan, p.view_j).into(),
+            target: format!("pairs/{}.ply", p.name).into(),
+            ground_truth: p.transform,
+            gt_quality: "exact".into(),
+            voxel: p.voxel,
+        })
+        .collect();
+    write_manifest(&out.join("pairs.tsv"), &[header_comment], &manifest)?;
     write_atomic(&out.join("pair_list.csv"), list.as_bytes())?;
     write_atomic(
         &out.join("views.csv"),

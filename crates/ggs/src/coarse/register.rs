@@ -36,7 +36,7 @@ pub fn coarse_register(
 }
 
 /// Run the coarse search on the correlators of `backend`. The picks depend on the backend
-/// only through its scores, which the [`Correlator`] contract fixes: every backend that
+/// only through its scores, which the [`Correlator`](super::Correlator) contract fixes: every backend that
 /// keeps it returns the same result.
 pub fn coarse_register_with(
     backend: &dyn Backend,

@@ -102,6 +102,47 @@ struct Header {
     lines: usize,
 }
 
+/// The encoding named by a `format` line.
+fn parse_format(path: &Path, line_no: usize, word: Option<&str>) -> Result<Encoding> {
+    match word {
+        Some("ascii") => Ok(Encoding::Ascii),
+        Some("binary_little_endian") => Ok(Encoding::BinaryLe),
+        Some("binary_big_endian") => Ok(Encoding::BinaryBe),
+        other => Err(GgsError::at_line(
+            path,
+            line_no,
+            format!("unknown format {other:?} (expected ascii, binary_little_endian or binary_big_endian)"),
+        )),
+    }
+}
+
+/// The rest of a `property` line: `TYPE NAME` or `list COUNT_TYPE ITEM_TYPE NAME`.
+fn parse_property<'a>(
+    path: &Path,
+    line_no: usize,
+    tok: &mut impl Iterator<Item = &'a str>,
+) -> Result<Property> {
+    let t = tok.next().unwrap_or("");
+    if t == "list" {
+        let ct = tok.next().and_then(Scalar::parse);
+        let it = tok.next().and_then(Scalar::parse);
+        return match (ct, it, tok.next()) {
+            (Some(c), Some(i), Some(n)) => Ok(Property::List(c, i, n.to_string())),
+            _ => Err(GgsError::at_line(
+                path,
+                line_no,
+                "expected 'property list COUNT_TYPE ITEM_TYPE NAME'",
+            )),
+        };
+    }
+    let ty = Scalar::parse(t)
+        .ok_or_else(|| GgsError::at_line(path, line_no, format!("unknown property type '{t}'")))?;
+    let name = tok
+        .next()
+        .ok_or_else(|| GgsError::at_line(path, line_no, "property without a name"))?;
+    Ok(Property::Scalar(ty, name.to_string()))
+}
+
 fn parse_header(path: &Path, bytes: &[u8]) -> Result<Header> {
     let mut pos = 0usize;
     let mut line_no = 0usize;
@@ -129,25 +170,15 @@ fn parse_header(path: &Path, bytes: &[u8]) -> Result<Header> {
             continue;
         }
         match key {
-            "format" => {
-                encoding = Some(match tok.next() {
-                    Some("ascii") => Encoding::Ascii,
-                    Some("binary_little_endian") => Encoding::BinaryLe,
-                    Some("binary_big_endian") => Encoding::BinaryBe,
-                    other => {
-                        return Err(GgsError::at_line(
-                            path,
-                            line_no,
-                            format!("unknown format {other:?} (expected ascii, binary_little_endian or binary_big_endian)"),
-                        ))
-                    }
-                })
-            }
+            "format" => encoding = Some(parse_format(path, line_no, tok.next())?),
             "element" => {
                 let name = tok.next().unwrap_or("").to_string();
-                let count = tok.next().and_then(|c| c.parse::<usize>().ok()).ok_or_else(|| {
-                    GgsError::at_line(path, line_no, "expected 'element NAME COUNT'")
-                })?;
+                let count = tok
+                    .next()
+                    .and_then(|c| c.parse::<usize>().ok())
+                    .ok_or_else(|| {
+                        GgsError::at_line(path, line_no, "expected 'element NAME COUNT'")
+                    })?;
                 elements.push(Element {
                     name,
                     count,
@@ -158,31 +189,7 @@ fn parse_header(path: &Path, bytes: &[u8]) -> Result<Header> {
                 let el = elements.last_mut().ok_or_else(|| {
                     GgsError::at_line(path, line_no, "'property' before any 'element'")
                 })?;
-                let t = tok.next().unwrap_or("");
-                let prop = if t == "list" {
-                    let ct = tok.next().and_then(Scalar::parse);
-                    let it = tok.next().and_then(Scalar::parse);
-                    let name = tok.next();
-                    match (ct, it, name) {
-                        (Some(c), Some(i), Some(n)) => Property::List(c, i, n.to_string()),
-                        _ => {
-                            return Err(GgsError::at_line(
-                                path,
-                                line_no,
-                                "expected 'property list COUNT_TYPE ITEM_TYPE NAME'",
-                            ))
-                        }
-                    }
-                } else {
-                    let ty = Scalar::parse(t).ok_or_else(|| {
-                        GgsError::at_line(path, line_no, format!("unknown property type '{t}'"))
-                    })?;
-                    let name = tok.next().ok_or_else(|| {
-                        GgsError::at_line(path, line_no, "property without a name")
-                    })?;
-                    Property::Scalar(ty, name.to_string())
-                };
-                el.props.push(prop);
+                el.props.push(parse_property(path, line_no, &mut tok)?);
             }
             "end_header" => break,
             // comment, obj_info and anything unknown: skipped.
@@ -429,6 +436,54 @@ pub fn parse_ply_mesh(path: &Path, bytes: &[u8]) -> Result<crate::io::mesh::Mesh
 
 /// Read the rows of elements `0..=vi`; the scalar properties at `xyz` of element `vi` are
 /// returned as points (`usize::MAX`: none), and faces go to `faces` if given.
+/// One text row of `el` (line `line_no`): the values at the property indices `xyz` (as x,
+/// y, z), and the face list into `faces` when that sink collects one of its properties.
+fn ascii_row(
+    path: &Path,
+    line_no: usize,
+    raw: &[u8],
+    el: &Element,
+    xyz: &[usize],
+    mut faces: Option<&mut FaceSink>,
+) -> Result<[f64; 3]> {
+    let line =
+        std::str::from_utf8(raw).map_err(|_| GgsError::at_line(path, line_no, "not valid text"))?;
+    let mut tok = line.split_ascii_whitespace();
+    let mut next = |what: &str| -> Result<f64> {
+        let t = tok.next().ok_or_else(|| {
+            GgsError::at_line(path, line_no, format!("missing value for '{what}'"))
+        })?;
+        t.parse::<f64>().map_err(|_| {
+            GgsError::at_line(path, line_no, format!("'{t}' is not a number ('{what}')"))
+        })
+    };
+    let mut vals = [0.0f64; 3];
+    for (pi, prop) in el.props.iter().enumerate() {
+        match prop {
+            Property::Scalar(_, name) => {
+                let v = next(name)?;
+                if let Some(d) = xyz.iter().position(|&x| x == pi) {
+                    vals[d] = v;
+                }
+            }
+            Property::List(_, _, name) => {
+                let n = next(name)?;
+                let mut sink = faces.as_deref_mut().filter(|f| f.property == pi);
+                for _ in 0..(n.max(0.0) as usize) {
+                    let v = next(name)?;
+                    if let Some(f) = sink.as_deref_mut() {
+                        f.push_index(path, v, Location::Line(line_no))?;
+                    }
+                }
+                if let Some(f) = sink {
+                    f.end_polygon();
+                }
+            }
+        }
+    }
+    Ok(vals)
+}
+
 fn read_ascii(
     path: &Path,
     bytes: &[u8],
@@ -462,54 +517,9 @@ fn read_ascii(
                 continue;
             }
             let line_no = h.lines + li + 1;
-            let line = std::str::from_utf8(raw)
-                .map_err(|_| GgsError::at_line(path, line_no, "not valid text"))?;
-            let mut tok = line.split_ascii_whitespace();
-            let mut vals = [0.0f64; 3];
-            for (pi, prop) in el.props.iter().enumerate() {
-                let mut next = |what: &str| -> Result<f64> {
-                    let t = tok.next().ok_or_else(|| {
-                        GgsError::at_line(path, line_no, format!("missing value for '{what}'"))
-                    })?;
-                    t.parse::<f64>().map_err(|_| {
-                        GgsError::at_line(
-                            path,
-                            line_no,
-                            format!("'{t}' is not a number ('{what}')"),
-                        )
-                    })
-                };
-                match prop {
-                    Property::Scalar(_, name) => {
-                        let v = next(name)?;
-                        if ei == vi {
-                            if let Some(d) = xyz.iter().position(|&x| x == pi) {
-                                vals[d] = v;
-                            }
-                        }
-                    }
-                    Property::List(_, _, name) => {
-                        let n = next(name)?;
-                        let sink = faces
-                            .as_mut()
-                            .filter(|f| f.element == ei && f.property == pi);
-                        match sink {
-                            Some(f) => {
-                                for _ in 0..(n.max(0.0) as usize) {
-                                    let v = next(name)?;
-                                    f.push_index(path, v, Location::Line(line_no))?;
-                                }
-                                f.end_polygon();
-                            }
-                            None => {
-                                for _ in 0..(n.max(0.0) as usize) {
-                                    next(name)?;
-                                }
-                            }
-                        }
-                    }
-                }
-            }
+            let wanted = if ei == vi { xyz } else { &[] };
+            let sink = faces.as_mut().filter(|f| f.element == ei);
+            let vals = ascii_row(path, line_no, raw, el, wanted, sink)?;
             if ei == vi {
                 out.push(vals);
             }
@@ -527,30 +537,15 @@ fn read_binary(
     little: bool,
     faces: &mut Option<FaceSink>,
 ) -> Result<Vec<Point>> {
-    let mut pos = h.data_start;
-    let truncated = |pos: usize, el: &Element, row: usize| {
-        GgsError::at_byte(
-            path,
-            pos as u64,
-            format!(
-                "truncated: element '{}' row {row} of {} runs past the end of the file ({} bytes)",
-                el.name,
-                el.count,
-                bytes.len()
-            ),
-        )
+    let mut cur = BinaryCursor {
+        path,
+        bytes,
+        little,
+        pos: h.data_start,
     };
     let mut out = Vec::new();
     let last = faces.as_ref().map_or(vi, |f| f.element.max(vi));
     for (ei, el) in h.elements.iter().enumerate().take(last + 1) {
-        let fixed: Option<usize> = el
-            .props
-            .iter()
-            .map(|p| match p {
-                Property::Scalar(t, _) => Some(t.size()),
-                Property::List(..) => None,
-            })
-            .sum();
         if ei == vi {
             let min_row: usize = el
                 .props
@@ -561,72 +556,137 @@ fn read_binary(
                 .sum();
             out.reserve(
                 el.count
-                    .min(bytes.len().saturating_sub(pos) / min_row.max(1)),
+                    .min(bytes.len().saturating_sub(cur.pos) / min_row.max(1)),
             );
         }
         let collect_faces = faces.as_ref().is_some_and(|f| f.element == ei);
-        if let (Some(size), true) = (fixed, ei != vi && !collect_faces) {
-            let len = size
-                .checked_mul(el.count)
-                .filter(|&l| pos + l <= bytes.len())
-                .ok_or_else(|| truncated(pos, el, 0))?;
-            pos += len;
+        if ei != vi && !collect_faces && cur.skip_fixed(el)? {
             continue;
         }
         for row in 0..el.count {
-            let mut vals = [0.0f64; 3];
-            for (pi, prop) in el.props.iter().enumerate() {
-                match prop {
-                    Property::Scalar(t, _) => {
-                        let s = t.size();
-                        let b = bytes
-                            .get(pos..pos + s)
-                            .ok_or_else(|| truncated(pos, el, row))?;
-                        if ei == vi {
-                            if let Some(d) = xyz.iter().position(|&x| x == pi) {
-                                vals[d] = t.decode(b, little);
-                            }
-                        }
-                        pos += s;
-                    }
-                    Property::List(ct, it, _) => {
-                        let s = ct.size();
-                        let b = bytes
-                            .get(pos..pos + s)
-                            .ok_or_else(|| truncated(pos, el, row))?;
-                        let n = ct.decode(b, little);
-                        if !(0.0..=1e9).contains(&n) {
-                            return Err(GgsError::at_byte(
-                                path,
-                                pos as u64,
-                                format!("invalid list length {n}"),
-                            ));
-                        }
-                        let start = pos + s;
-                        pos = start + n as usize * it.size();
-                        if pos > bytes.len() {
-                            return Err(truncated(start, el, row));
-                        }
-                        if let Some(f) = faces
-                            .as_mut()
-                            .filter(|f| f.element == ei && f.property == pi)
-                        {
-                            for k in 0..n as usize {
-                                let at = start + k * it.size();
-                                let v = it.decode(&bytes[at..at + it.size()], little);
-                                f.push_index(path, v, Location::Byte(at as u64))?;
-                            }
-                            f.end_polygon();
-                        }
-                    }
-                }
-            }
+            let wanted = if ei == vi { xyz } else { &[] };
+            let sink = faces.as_mut().filter(|f| f.element == ei);
+            let vals = cur.row(el, row, wanted, sink)?;
             if ei == vi {
                 out.push(vals);
             }
         }
     }
     Ok(out)
+}
+
+/// A position in the binary body of a PLY file.
+struct BinaryCursor<'a> {
+    path: &'a Path,
+    bytes: &'a [u8],
+    little: bool,
+    pos: usize,
+}
+
+impl BinaryCursor<'_> {
+    fn truncated(&self, pos: usize, el: &Element, row: usize) -> GgsError {
+        GgsError::at_byte(
+            self.path,
+            pos as u64,
+            format!(
+                "truncated: element '{}' row {row} of {} runs past the end of the file ({} bytes)",
+                el.name,
+                el.count,
+                self.bytes.len()
+            ),
+        )
+    }
+
+    /// Skips a whole element of fixed-size rows at once; `false` when its rows hold lists.
+    fn skip_fixed(&mut self, el: &Element) -> Result<bool> {
+        let fixed: Option<usize> = el
+            .props
+            .iter()
+            .map(|p| match p {
+                Property::Scalar(t, _) => Some(t.size()),
+                Property::List(..) => None,
+            })
+            .sum();
+        let Some(size) = fixed else {
+            return Ok(false);
+        };
+        let len = size
+            .checked_mul(el.count)
+            .filter(|&l| self.pos + l <= self.bytes.len())
+            .ok_or_else(|| self.truncated(self.pos, el, 0))?;
+        self.pos += len;
+        Ok(true)
+    }
+
+    /// Reads row `row` of `el`: the scalars at the property indices `xyz` (as x, y, z), and
+    /// the face list into `faces` when that sink collects one of its properties.
+    fn row(
+        &mut self,
+        el: &Element,
+        row: usize,
+        xyz: &[usize],
+        mut faces: Option<&mut FaceSink>,
+    ) -> Result<[f64; 3]> {
+        let mut vals = [0.0f64; 3];
+        for (pi, prop) in el.props.iter().enumerate() {
+            match prop {
+                Property::Scalar(t, _) => {
+                    let s = t.size();
+                    let b = self
+                        .bytes
+                        .get(self.pos..self.pos + s)
+                        .ok_or_else(|| self.truncated(self.pos, el, row))?;
+                    if let Some(d) = xyz.iter().position(|&x| x == pi) {
+                        vals[d] = t.decode(b, self.little);
+                    }
+                    self.pos += s;
+                }
+                Property::List(ct, it, _) => {
+                    let sink = faces.as_deref_mut().filter(|f| f.property == pi);
+                    self.list(el, row, *ct, *it, sink)?;
+                }
+            }
+        }
+        Ok(vals)
+    }
+
+    /// Reads one list (its count, then its items), pushing the items into `faces` if given.
+    fn list(
+        &mut self,
+        el: &Element,
+        row: usize,
+        count_type: Scalar,
+        item_type: Scalar,
+        faces: Option<&mut FaceSink>,
+    ) -> Result<()> {
+        let s = count_type.size();
+        let b = self
+            .bytes
+            .get(self.pos..self.pos + s)
+            .ok_or_else(|| self.truncated(self.pos, el, row))?;
+        let n = count_type.decode(b, self.little);
+        if !(0.0..=1e9).contains(&n) {
+            return Err(GgsError::at_byte(
+                self.path,
+                self.pos as u64,
+                format!("invalid list length {n}"),
+            ));
+        }
+        let start = self.pos + s;
+        self.pos = start + n as usize * item_type.size();
+        if self.pos > self.bytes.len() {
+            return Err(self.truncated(start, el, row));
+        }
+        if let Some(f) = faces {
+            for k in 0..n as usize {
+                let at = start + k * item_type.size();
+                let v = item_type.decode(&self.bytes[at..at + item_type.size()], self.little);
+                f.push_index(self.path, v, Location::Byte(at as u64))?;
+            }
+            f.end_polygon();
+        }
+        Ok(())
+    }
 }
 
 /// Options of the PLY writer.

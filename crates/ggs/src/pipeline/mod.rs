@@ -344,6 +344,42 @@ pub fn register(source: &Cloud, target: &Cloud, cfg: &RegistrationConfig) -> Res
     pool.install(|| register_in_pool(source, target, cfg))
 }
 
+/// The coarse search's configuration: the pipeline's, at the resolved voxel and thread
+/// count, keeping as many hypotheses as the verification checks.
+fn search_config(cfg: &RegistrationConfig, voxel: f64) -> SearchConfig {
+    let mut search = cfg.search.clone();
+    search.voxel = voxel;
+    search.threads = cfg.threads;
+    if let Some(v) = &cfg.verify {
+        search.top_k = search.top_k.max(v.max_hypotheses);
+    }
+    search
+}
+
+/// Where the final refinement starts: the verification's choice, or (without verification)
+/// the coarse winner, polished when the configuration asks. Returns that pose, the coarse
+/// transform it came from and its coarse rank.
+fn starting_pose(
+    source: &Cloud,
+    target: &Cloud,
+    coarse: &SearchResult,
+    verification: Option<&Verification>,
+    search: &SearchConfig,
+    cfg: &RegistrationConfig,
+) -> Result<(Rigid, Rigid, usize)> {
+    Ok(match verification {
+        Some(v) => {
+            let h = &v.hypotheses[v.chosen];
+            (h.transform, h.coarse_transform, h.rank)
+        }
+        None => (
+            maybe_polished(source, target, coarse.winner(), search, cfg)?.transform,
+            coarse.transform(),
+            0,
+        ),
+    })
+}
+
 fn register_in_pool(
     source: &Cloud,
     target: &Cloud,
@@ -363,12 +399,7 @@ fn register_in_pool(
         let (s, t) = rayon::join(|| point_spacing(&source.points), spacing_of_target);
         s.max(t)
     })?;
-    let mut search = cfg.search.clone();
-    search.voxel = voxel;
-    search.threads = cfg.threads;
-    if let Some(v) = &cfg.verify {
-        search.top_k = search.top_k.max(v.max_hypotheses);
-    }
+    let search = search_config(cfg, voxel);
     let mut coarse = coarse_register(source, target, &cfg.rotations, &search)?;
     let search_ms = ms(t0);
     let t_verify = Instant::now();
@@ -386,17 +417,8 @@ fn register_in_pool(
         }
         None => None,
     };
-    let (start, coarse_transform, chosen_rank) = match &verification {
-        Some(v) => {
-            let h = &v.hypotheses[v.chosen];
-            (h.transform, h.coarse_transform, h.rank)
-        }
-        None => (
-            maybe_polished(source, target, &coarse.hypotheses[0], &search, cfg)?.transform,
-            coarse.transform(),
-            0,
-        ),
-    };
+    let (start, coarse_transform, chosen_rank) =
+        starting_pose(source, target, &coarse, verification.as_ref(), &search, cfg)?;
     let verify_ms = ms(t_verify);
     let t_refine = Instant::now();
     let refined = match &refine_cfg {

@@ -309,6 +309,38 @@ impl CellGrid {
         loc
     }
 
+    /// The points of the 3 × 3 × 3 block of cells around `cell` into `pts` / `idx`, and the
+    /// block's min and max corners.
+    fn gather_block(
+        &self,
+        cell: usize,
+        pts: &mut Vec<Point>,
+        idx: &mut Vec<u32>,
+    ) -> ([f64; 3], [f64; 3]) {
+        let c = self.coords[cell];
+        pts.clear();
+        idx.clear();
+        for di in -1..=1i64 {
+            for dj in -1..=1i64 {
+                for dk in -1..=1i64 {
+                    let at = [c[0] as i64 + di, c[1] as i64 + dj, c[2] as i64 + dk];
+                    if let Some(nc) = self.find(at) {
+                        let r = self.range(nc);
+                        pts.extend_from_slice(&self.sorted[r.clone()]);
+                        idx.extend_from_slice(&self.order[r]);
+                    }
+                }
+            }
+        }
+        let mut lo = [0.0; 3];
+        let mut hi = [0.0; 3];
+        for a in 0..3 {
+            lo[a] = self.origin[a] + (c[a] as f64 - 1.0) * self.h;
+            hi[a] = self.origin[a] + (c[a] as f64 + 2.0) * self.h;
+        }
+        (lo, hi)
+    }
+
     /// `f(i, indices, points)` for every point `i` of `cell`, in the cell's order (see
     /// [`Self::locations`]), with the original indices and the coordinates of its `k`
     /// nearest points (itself included; fewer if the cloud is smaller), in an order fixed by
@@ -344,29 +376,9 @@ impl CellGrid {
             nbr_idx,
             nbr_pts,
         } = scratch;
-        let c = self.coords[cell];
-        cand_pts.clear();
-        cand_idx.clear();
-        for di in -1..=1i64 {
-            for dj in -1..=1i64 {
-                for dk in -1..=1i64 {
-                    let at = [c[0] as i64 + di, c[1] as i64 + dj, c[2] as i64 + dk];
-                    if let Some(nc) = self.find(at) {
-                        let r = self.range(nc);
-                        cand_pts.extend_from_slice(&self.sorted[r.clone()]);
-                        cand_idx.extend_from_slice(&self.order[r]);
-                    }
-                }
-            }
-        }
+        let (block_lo, block_hi) = self.gather_block(cell, cand_pts, cand_idx);
         keys.resize(cand_pts.len(), 0);
         cand_d2.resize(cand_pts.len(), 0.0);
-        let mut block_lo = [0.0; 3];
-        let mut block_hi = [0.0; 3];
-        for a in 0..3 {
-            block_lo[a] = self.origin[a] + (c[a] as f64 - 1.0) * self.h;
-            block_hi[a] = self.origin[a] + (c[a] as f64 + 2.0) * self.h;
-        }
         for s in self.range(cell) {
             let q = &self.sorted[s];
             let i = self.order[s] as usize;
@@ -384,21 +396,7 @@ impl CellGrid {
                 let d = [p[0] - q[0], p[1] - q[1], p[2] - q[2]];
                 *d2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
             }
-            // Branch-free filter: every candidate is written, those within the radius are
-            // kept. Keys (d² bits, position) order like (d², position) since d² ≥ 0. First
-            // within `min(bd, hint)` (few candidates to select from), then, if that holds
-            // fewer than k, within `bd`.
-            let mut m = 0;
-            for limit2 in [bd2.min(hint2), bd2] {
-                m = 0;
-                for (pos, &d2) in cand_d2.iter().enumerate() {
-                    keys[m] = ((d2.to_bits() as u128) << 32) | pos as u128;
-                    m += (d2 <= limit2) as usize;
-                }
-                if m >= k || hint2 >= bd2 {
-                    break;
-                }
-            }
+            let m = keys_within(cand_d2, keys, bd2, hint2, k);
             if m >= k {
                 let kept = &mut keys[..m];
                 if m > k {
@@ -550,6 +548,27 @@ pub fn median_kth_distance(points: &[Point], tree: &PointIndex, k: usize) -> Opt
     d.select_nth_unstable_by(m, f64::total_cmp);
     let h = d[m] * 1.0;
     (h.is_finite() && h > 0.0).then_some(h)
+}
+
+/// Packs the candidates within the certified radius into `keys[..m]` and returns `m`.
+///
+/// Branch-free: every candidate is written, those within the radius are kept. Keys (d² bits,
+/// position) order like (d², position) since d² ≥ 0. First within `min(bd2, hint2)` (few
+/// candidates to select from), then, if that holds fewer than `k`, within `bd2`.
+#[inline]
+fn keys_within(d2s: &[f64], keys: &mut [u128], bd2: f64, hint2: f64, k: usize) -> usize {
+    let mut m = 0;
+    for limit2 in [bd2.min(hint2), bd2] {
+        m = 0;
+        for (pos, &d2) in d2s.iter().enumerate() {
+            keys[m] = ((d2.to_bits() as u128) << 32) | pos as u128;
+            m += (d2 <= limit2) as usize;
+        }
+        if m >= k || hint2 >= bd2 {
+            break;
+        }
+    }
+    m
 }
 
 #[cfg(test)]
