@@ -476,3 +476,93 @@ fn coarse_to_fine_parameters_are_checked() {
         assert!(coarse_register(&c, &c, limited15(), &cfg).is_err());
     }
 }
+
+/// A second backend, written outside the library the way a GPU backend would be: exact
+/// scores only (the CPU's f64 path behind it), no approximate path of its own, so the
+/// search runs on the trait's default `approx` (exact scores as intervals of width 0). It
+/// counts the rotations it is asked to score.
+mod second_backend {
+    use ggs::coarse::correlator::{
+        Backend, BestOffset, Correlator, CpuBackend, PassControl, RotatedSources, Scores,
+        StageTimes,
+    };
+    use ggs::coarse::geometry::Geometry;
+    use ggs::coarse::voxel::Occupancy;
+    use std::sync::atomic::{AtomicUsize, Ordering};
+    use std::sync::Arc;
+
+    #[derive(Default)]
+    pub struct ExactOnly {
+        pub scored: Arc<AtomicUsize>,
+    }
+
+    struct Plan {
+        inner: Box<dyn Correlator>,
+        scored: Arc<AtomicUsize>,
+    }
+
+    impl Backend for ExactOnly {
+        fn plan(
+            &self,
+            geo: Geometry,
+            kernel: &Occupancy,
+            _scores: Scores,
+        ) -> ggs::Result<Box<dyn Correlator>> {
+            Ok(Box::new(Plan {
+                inner: CpuBackend.plan(geo, kernel, Scores::Exact)?,
+                scored: self.scored.clone(),
+            }))
+        }
+    }
+
+    impl Correlator for Plan {
+        fn geometry(&self) -> &Geometry {
+            self.inner.geometry()
+        }
+        fn kernel_cells(&self) -> i64 {
+            self.inner.kernel_cells()
+        }
+        fn kernel_occupied(&self) -> i64 {
+            self.inner.kernel_occupied()
+        }
+        fn exact(
+            &self,
+            ctl: &PassControl<'_>,
+            src: &RotatedSources<'_>,
+            indices: &[usize],
+        ) -> ggs::Result<(Vec<BestOffset>, StageTimes)> {
+            self.scored.fetch_add(indices.len(), Ordering::Relaxed);
+            self.inner.exact(ctl, src, indices)
+        }
+    }
+}
+
+#[test]
+fn a_second_backend_gives_the_cpu_backends_picks_in_both_modes() {
+    let dir = common::repo_root().join("tests/data");
+    let source = read_cloud(&dir.join("bun0.pcd"), None).unwrap().cloud;
+    let target = read_cloud(&dir.join("bun4.pcd"), None).unwrap().cloud;
+    for mode in [
+        SearchMode::Exhaustive,
+        SearchMode::CoarseToFine(CoarseToFine::default()),
+    ] {
+        let cfg = SearchConfig {
+            top_k: 4,
+            mode,
+            ..SearchConfig::with_voxel(0.006)
+        };
+        let cpu = coarse_register(&source, &target, limited15(), &cfg).unwrap();
+        let backend = second_backend::ExactOnly::default();
+        let other =
+            ggs::coarse::coarse_register_with(&backend, &source, &target, limited15(), &cfg)
+                .unwrap();
+        assert_identical(&cpu, &other);
+        // It did the work: every rotation scored at the voxel, and the coarse level's too.
+        let asked = backend.scored.load(std::sync::atomic::Ordering::Relaxed);
+        assert!(
+            asked >= other.stats.scored,
+            "{asked} < {}",
+            other.stats.scored
+        );
+    }
+}
