@@ -6,11 +6,11 @@ use anyhow::{Context, Result};
 use clap::Args;
 use ggs::coarse;
 use ggs::html::registration::RegistrationReport;
-use ggs::io::{self, ply, ReadOptions};
+use ggs::io::{self, ReadOptions};
 use ggs::pipeline::{self, Registration, RegistrationConfig, Verification, VoxelSize};
 use ggs::refine;
 use ggs::rotations::RotationSet;
-use ggs::{Cloud, Point, Rigid};
+use ggs::{Cloud, Rigid};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::Instant;
@@ -176,12 +176,7 @@ pub fn run(args: RegisterArgs) -> Result<()> {
     let final_t = reg.transform;
     write_outputs(&args.io, &source, &final_t)?;
     if let Some(path) = &args.overlay {
-        let moved: Vec<Point> = source.transformed(&final_t).points;
-        let mut pts = target.points.clone();
-        pts.extend_from_slice(&moved);
-        let mut colors = vec![[40u8, 110, 255]; target.len()];
-        colors.extend(std::iter::repeat_n([255u8, 140, 0], moved.len()));
-        ply::write_ply(path, &pts, Some(&colors), Default::default())?;
+        ggs::io::write_overlay(path, &source, &target, &final_t)?;
     }
     let total_ms = t0.elapsed().as_secs_f64() * 1e3;
     if let Some(path) = &args.report {
@@ -199,28 +194,7 @@ pub fn run(args: RegisterArgs) -> Result<()> {
         }
     }
     if args.io.json {
-        let out = serde_json::json!({
-            "source": args.source,
-            "target": args.target,
-            "preset": args.pipeline.preset,
-            "voxel": reg.voxel,
-            "voxel_auto": reg.voxel_rule.is_some(),
-            "voxel_rule": reg.voxel_rule,
-            "transform": final_t.to_rows(),
-            "coarse_transform": reg.coarse_transform.to_rows(),
-            "chosen_rank": reg.chosen_rank,
-            "confidence": reg.confidence,
-            "ambiguous": reg.ambiguous,
-            "warnings": reg.warnings,
-            "result": reg.search,
-            "verification": reg.verification,
-            "refine": reg.refine,
-            "refine_cell": reg.refine_cell,
-            "timings": reg.timings,
-            "read_ms": read_ms,
-            "total_ms": total_ms,
-        });
-        outln!("{}", serde_json::to_string_pretty(&out)?);
+        print_json(&args, &reg, read_ms, total_ms)?;
     } else {
         out!("{}", final_t.to_text());
         print_summary(&reg, &args.pipeline.preset, read_ms, total_ms)?;
@@ -258,6 +232,34 @@ fn command_line() -> String {
         .chain(args.map(quote))
         .collect::<Vec<_>>()
         .join(" ")
+}
+
+/// The `--json` document: the inputs, the answer, the search, the verification, the
+/// refinement and the times.
+fn print_json(args: &RegisterArgs, reg: &Registration, read_ms: f64, total_ms: f64) -> Result<()> {
+    let out = serde_json::json!({
+        "source": args.source,
+        "target": args.target,
+        "preset": args.pipeline.preset,
+        "voxel": reg.voxel,
+        "voxel_auto": reg.voxel_rule.is_some(),
+        "voxel_rule": reg.voxel_rule,
+        "transform": reg.transform.to_rows(),
+        "coarse_transform": reg.coarse_transform.to_rows(),
+        "chosen_rank": reg.chosen_rank,
+        "confidence": reg.confidence,
+        "ambiguous": reg.ambiguous,
+        "warnings": reg.warnings,
+        "result": reg.search,
+        "verification": reg.verification,
+        "refine": reg.refine,
+        "refine_cell": reg.refine_cell,
+        "timings": reg.timings,
+        "read_ms": read_ms,
+        "total_ms": total_ms,
+    });
+    outln!("{}", serde_json::to_string_pretty(&out)?);
+    Ok(())
 }
 
 fn print_summary(reg: &Registration, preset: &str, read_ms: f64, total_ms: f64) -> Result<()> {

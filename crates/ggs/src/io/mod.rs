@@ -319,6 +319,27 @@ pub fn write_cloud(
     }
 }
 
+/// Colour of the target in an overlay: blue.
+pub const OVERLAY_TARGET_RGB: [u8; 3] = [40, 110, 255];
+/// Colour of the moved source in an overlay: orange.
+pub const OVERLAY_SOURCE_RGB: [u8; 3] = [255, 140, 0];
+
+/// Writes the target and the source moved by `transform` into one coloured PLY (target
+/// blue, source orange), to look at the alignment in any viewer. Atomic.
+pub fn write_overlay(
+    path: &Path,
+    source: &crate::cloud::Cloud,
+    target: &crate::cloud::Cloud,
+    transform: &crate::transform::Rigid,
+) -> Result<()> {
+    let moved = source.transformed(transform).points;
+    let mut pts = target.points.clone();
+    pts.extend_from_slice(&moved);
+    let mut colors = vec![OVERLAY_TARGET_RGB; target.len()];
+    colors.extend(std::iter::repeat_n(OVERLAY_SOURCE_RGB, moved.len()));
+    ply::write_ply(path, &pts, Some(&colors), Default::default())
+}
+
 /// Extensions [`write_cloud`] writes.
 pub const WRITABLE: &str = ".ply, .pcd, .xyz/.txt/.pts/.csv, .npy, .bin, .las, .laz, .e57";
 
