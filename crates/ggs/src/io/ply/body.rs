@@ -1,0 +1,292 @@
+//! The PLY body: rows of ascii text or binary records, vertices and face lists.
+
+use super::header::{Element, Header, Property, Scalar};
+use crate::cloud::Point;
+use crate::error::{GgsError, Location, Result};
+use std::path::Path;
+
+/// Where face polygons are collected: the face element, its index list property, and the
+/// fan-triangulated output.
+pub(super) struct FaceSink {
+    pub(super) element: usize,
+    pub(super) property: usize,
+    pub(super) triangles: Vec<[u32; 3]>,
+    pub(super) polygon: Vec<u32>,
+}
+
+impl FaceSink {
+    fn push_index(&mut self, path: &Path, v: f64, at: Location) -> Result<()> {
+        if !(v >= 0.0 && v < u32::MAX as f64 && v.fract() == 0.0) {
+            return Err(GgsError::at(
+                path,
+                at,
+                format!("face vertex index {v} is not a valid index (expected an integer ≥ 0)"),
+            ));
+        }
+        self.polygon.push(v as u32);
+        Ok(())
+    }
+
+    fn end_polygon(&mut self) {
+        for k in 1..self.polygon.len().saturating_sub(1) {
+            self.triangles
+                .push([self.polygon[0], self.polygon[k], self.polygon[k + 1]]);
+        }
+        self.polygon.clear();
+    }
+}
+
+/// Read the rows of elements `0..=vi`; the scalar properties at `xyz` of element `vi` are
+/// returned as points (`usize::MAX`: none), and faces go to `faces` if given.
+/// One text row of `el` (line `line_no`): the values at the property indices `xyz` (as x,
+/// y, z), and the face list into `faces` when that sink collects one of its properties.
+pub(super) fn ascii_row(
+    path: &Path,
+    line_no: usize,
+    raw: &[u8],
+    el: &Element,
+    xyz: &[usize],
+    mut faces: Option<&mut FaceSink>,
+) -> Result<[f64; 3]> {
+    let line =
+        std::str::from_utf8(raw).map_err(|_| GgsError::at_line(path, line_no, "not valid text"))?;
+    let mut tok = line.split_ascii_whitespace();
+    let mut next = |what: &str| -> Result<f64> {
+        let t = tok.next().ok_or_else(|| {
+            GgsError::at_line(path, line_no, format!("missing value for '{what}'"))
+        })?;
+        t.parse::<f64>().map_err(|_| {
+            GgsError::at_line(path, line_no, format!("'{t}' is not a number ('{what}')"))
+        })
+    };
+    let mut vals = [0.0f64; 3];
+    for (pi, prop) in el.props.iter().enumerate() {
+        match prop {
+            Property::Scalar(_, name) => {
+                let v = next(name)?;
+                if let Some(d) = xyz.iter().position(|&x| x == pi) {
+                    vals[d] = v;
+                }
+            }
+            Property::List(_, _, name) => {
+                let n = next(name)?;
+                let mut sink = faces.as_deref_mut().filter(|f| f.property == pi);
+                for _ in 0..(n.max(0.0) as usize) {
+                    let v = next(name)?;
+                    if let Some(f) = sink.as_deref_mut() {
+                        f.push_index(path, v, Location::Line(line_no))?;
+                    }
+                }
+                if let Some(f) = sink {
+                    f.end_polygon();
+                }
+            }
+        }
+    }
+    Ok(vals)
+}
+
+pub(super) fn read_ascii(
+    path: &Path,
+    bytes: &[u8],
+    h: &Header,
+    vi: usize,
+    xyz: &[usize],
+    faces: &mut Option<FaceSink>,
+) -> Result<Vec<Point>> {
+    let text = &bytes[h.data_start..];
+    let mut lines = text
+        .split(|&b| b == b'\n')
+        .enumerate()
+        .filter(|(_, l)| !l.iter().all(|b| b.is_ascii_whitespace()));
+    // A header may declare more rows than the file holds: reserve no more than the bytes
+    // could hold (an ascii vertex takes at least 6 bytes).
+    let mut out = Vec::with_capacity(h.elements[vi].count.min(text.len() / 6));
+    let last = faces.as_ref().map_or(vi, |f| f.element.max(vi));
+    for (ei, el) in h.elements.iter().enumerate().take(last + 1) {
+        for k in 0..el.count {
+            let (li, raw) = lines.next().ok_or_else(|| {
+                GgsError::in_file(
+                    path,
+                    format!(
+                        "truncated: element '{}' declares {} rows, the file ends after {k}",
+                        el.name, el.count
+                    ),
+                )
+            })?;
+            let collect_faces = faces.as_ref().is_some_and(|f| f.element == ei);
+            if ei != vi && !collect_faces {
+                continue;
+            }
+            let line_no = h.lines + li + 1;
+            let wanted = if ei == vi { xyz } else { &[] };
+            let sink = faces.as_mut().filter(|f| f.element == ei);
+            let vals = ascii_row(path, line_no, raw, el, wanted, sink)?;
+            if ei == vi {
+                out.push(vals);
+            }
+        }
+    }
+    Ok(out)
+}
+
+pub(super) fn read_binary(
+    path: &Path,
+    bytes: &[u8],
+    h: &Header,
+    vi: usize,
+    xyz: &[usize],
+    little: bool,
+    faces: &mut Option<FaceSink>,
+) -> Result<Vec<Point>> {
+    let mut cur = BinaryCursor {
+        path,
+        bytes,
+        little,
+        pos: h.data_start,
+    };
+    let mut out = Vec::new();
+    let last = faces.as_ref().map_or(vi, |f| f.element.max(vi));
+    for (ei, el) in h.elements.iter().enumerate().take(last + 1) {
+        if ei == vi {
+            let min_row: usize = el
+                .props
+                .iter()
+                .map(|p| match p {
+                    Property::Scalar(t, _) | Property::List(t, _, _) => t.size(),
+                })
+                .sum();
+            out.reserve(
+                el.count
+                    .min(bytes.len().saturating_sub(cur.pos) / min_row.max(1)),
+            );
+        }
+        let collect_faces = faces.as_ref().is_some_and(|f| f.element == ei);
+        if ei != vi && !collect_faces && cur.skip_fixed(el)? {
+            continue;
+        }
+        for row in 0..el.count {
+            let wanted = if ei == vi { xyz } else { &[] };
+            let sink = faces.as_mut().filter(|f| f.element == ei);
+            let vals = cur.row(el, row, wanted, sink)?;
+            if ei == vi {
+                out.push(vals);
+            }
+        }
+    }
+    Ok(out)
+}
+
+/// A position in the binary body of a PLY file.
+pub(super) struct BinaryCursor<'a> {
+    path: &'a Path,
+    bytes: &'a [u8],
+    little: bool,
+    pos: usize,
+}
+
+impl BinaryCursor<'_> {
+    fn truncated(&self, pos: usize, el: &Element, row: usize) -> GgsError {
+        GgsError::at_byte(
+            self.path,
+            pos as u64,
+            format!(
+                "truncated: element '{}' row {row} of {} runs past the end of the file ({} bytes)",
+                el.name,
+                el.count,
+                self.bytes.len()
+            ),
+        )
+    }
+
+    /// Skips a whole element of fixed-size rows at once; `false` when its rows hold lists.
+    fn skip_fixed(&mut self, el: &Element) -> Result<bool> {
+        let fixed: Option<usize> = el
+            .props
+            .iter()
+            .map(|p| match p {
+                Property::Scalar(t, _) => Some(t.size()),
+                Property::List(..) => None,
+            })
+            .sum();
+        let Some(size) = fixed else {
+            return Ok(false);
+        };
+        let len = size
+            .checked_mul(el.count)
+            .filter(|&l| self.pos + l <= self.bytes.len())
+            .ok_or_else(|| self.truncated(self.pos, el, 0))?;
+        self.pos += len;
+        Ok(true)
+    }
+
+    /// Reads row `row` of `el`: the scalars at the property indices `xyz` (as x, y, z), and
+    /// the face list into `faces` when that sink collects one of its properties.
+    fn row(
+        &mut self,
+        el: &Element,
+        row: usize,
+        xyz: &[usize],
+        mut faces: Option<&mut FaceSink>,
+    ) -> Result<[f64; 3]> {
+        let mut vals = [0.0f64; 3];
+        for (pi, prop) in el.props.iter().enumerate() {
+            match prop {
+                Property::Scalar(t, _) => {
+                    let s = t.size();
+                    let b = self
+                        .bytes
+                        .get(self.pos..self.pos + s)
+                        .ok_or_else(|| self.truncated(self.pos, el, row))?;
+                    if let Some(d) = xyz.iter().position(|&x| x == pi) {
+                        vals[d] = t.decode(b, self.little);
+                    }
+                    self.pos += s;
+                }
+                Property::List(ct, it, _) => {
+                    let sink = faces.as_deref_mut().filter(|f| f.property == pi);
+                    self.list(el, row, *ct, *it, sink)?;
+                }
+            }
+        }
+        Ok(vals)
+    }
+
+    /// Reads one list (its count, then its items), pushing the items into `faces` if given.
+    fn list(
+        &mut self,
+        el: &Element,
+        row: usize,
+        count_type: Scalar,
+        item_type: Scalar,
+        faces: Option<&mut FaceSink>,
+    ) -> Result<()> {
+        let s = count_type.size();
+        let b = self
+            .bytes
+            .get(self.pos..self.pos + s)
+            .ok_or_else(|| self.truncated(self.pos, el, row))?;
+        let n = count_type.decode(b, self.little);
+        if !(0.0..=1e9).contains(&n) {
+            return Err(GgsError::at_byte(
+                self.path,
+                self.pos as u64,
+                format!("invalid list length {n}"),
+            ));
+        }
+        let start = self.pos + s;
+        self.pos = start + n as usize * item_type.size();
+        if self.pos > self.bytes.len() {
+            return Err(self.truncated(start, el, row));
+        }
+        if let Some(f) = faces {
+            for k in 0..n as usize {
+                let at = start + k * item_type.size();
+                let v = item_type.decode(&self.bytes[at..at + item_type.size()], self.little);
+                f.push_index(self.path, v, Location::Byte(at as u64))?;
+            }
+            f.end_polygon();
+        }
+        Ok(())
+    }
+}
