@@ -260,6 +260,7 @@ def native_options(
     precision: Precision = "mixed",
     max_hypotheses: Optional[int] = None,
     margin: Optional[float] = None,
+    verify_score: Optional[str] = None,
     verify: bool = True,
     polish: bool = False,
     max_memory: Union[int, str, None] = None,
@@ -298,6 +299,7 @@ def native_options(
         "precision": precision,
         "max_hypotheses": max_hypotheses,
         "margin": margin,
+        "verify_score": verify_score,
         "verify": verify,
         "polish": polish,
         "max_memory": _bytes(max_memory),
@@ -330,6 +332,7 @@ def register(
     precision: Precision = "mixed",
     max_hypotheses: Optional[int] = None,
     margin: Optional[float] = None,
+    verify_score: Optional[str] = None,
     verify: bool = True,
     polish: bool = False,
     max_memory: Union[int, str, None] = None,
@@ -352,8 +355,8 @@ def register(
       1.5 × the clouds' point spacing when that is larger).
     preset: ``"default"`` — the full-SO(3) rotation set ``hopf15-id``, the coarse-to-fine
       search, then every distinct coarse hypothesis whose match score is at least half the
-      winner's (at most 8) refined on thinned clouds and scored by how much of both clouds
-      lies within a fixed distance of the other, the best refined by GICP — or ``"paper"``,
+      winner's (at most 32) refined on thinned clouds and scored by how closely both clouds
+      lie to each other within a fixed distance, the best refined by GICP — or ``"paper"``,
       the GGS paper's configuration (``limited15``, exhaustive, one hypothesis, GICP).
     The other arguments change the preset:
     rotations: a name of ``ROTATION_SETS`` or an (N, 3, 3) array of rotation matrices.
@@ -361,9 +364,11 @@ def register(
       ``"huber:K"``, ``"cauchy:K"``, ``"geman-mcclure:K"`` (K in cloud units).
     search: ``"exhaustive"`` or ``"coarse-to-fine"``; precision: ``"mixed"`` (f32 with proven
       error bounds, f64 where they matter: the same picks as ``"f64"``) or ``"f64"``.
-    max_hypotheses, margin: how many distinct hypotheses are verified (at most; default 8) and
-      which (match score ≥ margin × the winner's; default 0.5); verify=False takes the coarse
-      winner; polish=True moves each hypothesis on a finer rotation grid first.
+    max_hypotheses, margin: how many distinct hypotheses are verified (at most; default 32)
+      and which (match score ≥ margin × the winner's; default 0.5); verify_score:
+      ``"tight"`` (default: a point within the distance D counts by 1 − d²/D²) or
+      ``"fitness"`` (the share of points within D); verify=False takes the coarse winner;
+      polish=True moves each hypothesis on a finer rotation grid first.
     top_k: coarse hypotheses reported; distinct_radius: degrees that make two rotations
       distinct (default 2 × the set's step); max_memory: bytes, or ``"2G"``, ``"512M"``;
       dedup: drop rotations within this many degrees of an earlier one.
@@ -391,6 +396,7 @@ def register(
         precision=precision,
         max_hypotheses=max_hypotheses,
         margin=margin,
+        verify_score=verify_score,
         verify=verify,
         polish=polish,
         max_memory=max_memory,

@@ -67,6 +67,7 @@ pub(crate) struct Options {
     precision: String,
     max_hypotheses: Option<usize>,
     margin: Option<f64>,
+    verify_score: Option<String>,
     verify: bool,
     polish: bool,
     max_memory: Option<u64>,
@@ -161,19 +162,23 @@ fn apply_verification(cfg: &mut RegistrationConfig, o: &Options) -> PyResult<()>
     if !o.verify {
         cfg.verify = None;
     }
-    match (&mut cfg.verify, o.max_hypotheses, o.margin) {
-        (Some(v), n, m) => {
-            if let Some(n) = n {
+    let asked = o.max_hypotheses.is_some() || o.margin.is_some() || o.verify_score.is_some();
+    match &mut cfg.verify {
+        Some(v) => {
+            if let Some(n) = o.max_hypotheses {
                 v.max_hypotheses = n;
             }
-            if let Some(m) = m {
+            if let Some(m) = o.margin {
                 v.margin = m;
             }
+            if let Some(sc) = &o.verify_score {
+                v.score = sc.parse().map_err(value_err)?;
+            }
         }
-        (None, None, None) => {}
-        (None, _, _) => return Err(PyValueError::new_err(
-            "max_hypotheses and margin need verification (not with verify=False or preset='paper')",
+        None if asked => return Err(PyValueError::new_err(
+            "max_hypotheses, margin and verify_score need verification (not with verify=False or preset='paper')",
         )),
+        None => {}
     }
     if o.polish {
         cfg.polish = Some(pipeline::PolishConfig::default());

@@ -350,15 +350,20 @@ def test_results_pickle_and_convert_to_dicts():
 
 
 def test_symmetric_data_is_flagged_with_a_ggs_warning():
-    # Points on the faces of a 3 × 2 × 1 box: turning it by 180° about an axis gives the same
-    # cloud, so at least two distinct poses fit exactly.
-    rng = np.random.default_rng(3)
-    u = rng.uniform(-1, 1, size=(6000, 3)) * [1.5, 1.0, 0.5]
-    axis = rng.integers(0, 3, size=6000)
-    sign = rng.choice([-1.0, 1.0], size=6000)
-    u[np.arange(6000), axis] = sign * np.array([1.5, 1.0, 0.5])[axis]
+    # Points on the faces of a 3 × 2 × 1 box, sampled twice: turning it by 180° about an axis
+    # gives the same surface, so at least two distinct poses fit equally well. (The same
+    # sample twice would not do: the identity puts every point exactly on itself, which the
+    # tight score prefers to a turn that puts it near another.)
+    def box(seed):
+        rng = np.random.default_rng(seed)
+        u = rng.uniform(-1, 1, size=(6000, 3)) * [1.5, 1.0, 0.5]
+        axis = rng.integers(0, 3, size=6000)
+        sign = rng.choice([-1.0, 1.0], size=6000)
+        u[np.arange(6000), axis] = sign * np.array([1.5, 1.0, 0.5])[axis]
+        return u
+
     with pytest.warns(ggs.GgsWarning, match="ambiguous"):
-        r = ggs.register(u, u, voxel=0.15)
+        r = ggs.register(box(3), box(4), voxel=0.15)
     assert r.ambiguous and r.confidence < 0.1 and r.warnings
 
 
@@ -398,6 +403,24 @@ def test_progress_callback_and_every_option_reachable():
     )
     assert len(r.verified) == 3 and len(r.hypotheses) == 2
     assert r.report["correspondence_distance"] == 0.01 and r.report["iterations"] <= 40
+
+
+
+def test_verify_score_tight_weighs_closeness_fitness_counts():
+    source, target = bunny_small()
+    tight = ggs.register(source, target, voxel=0.006, max_hypotheses=3, margin=0.0)
+    fitness = ggs.register(
+        source, target, voxel=0.006, max_hypotheses=3, margin=0.0, verify_score="fitness"
+    )
+    # A point within D counts 1 − d²/D² ≤ 1: the tight scores are lower, pose by pose.
+    assert [t["rank"] for t in tight.verified] == [f["rank"] for f in fitness.verified]
+    for t, f in zip(tight.verified, fitness.verified):
+        assert t["score"] <= f["score"]
+    assert tight.verified[0]["score"] < fitness.verified[0]["score"]
+    with pytest.raises(ValueError, match="tight or fitness"):
+        ggs.register(source, target, voxel=0.006, verify_score="close")
+    with pytest.raises(ValueError, match="need verification"):
+        ggs.register(source, target, voxel=0.006, verify=False, verify_score="fitness")
 
 
 def test_register_many(tmp_path):

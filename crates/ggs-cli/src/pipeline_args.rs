@@ -29,6 +29,11 @@ pub struct PipelineArgs {
     /// Verify the hypotheses whose match score is at least this fraction of the winner's.
     #[arg(long, value_name = "F")]
     pub margin: Option<f64>,
+    /// How the verification scores a pose: tight (default: each point within D counts by
+    /// 1 − d²/D², so an exact small overlap beats a loose large one) or fitness (the share of
+    /// points within D, the score before 0.2).
+    #[arg(long, value_name = "SCORE")]
+    pub verify_score: Option<String>,
     /// Take the coarse winner without verification.
     #[arg(long)]
     pub no_verify: bool,
@@ -76,8 +81,14 @@ impl PipelineArgs {
                 }
                 v.margin = m;
             }
-        } else if self.max_hypotheses.is_some() || self.margin.is_some() {
-            bail!("--max-hypotheses and --margin need verification (not with --no-verify or --preset paper)");
+            if let Some(sc) = &self.verify_score {
+                v.score = sc.parse().context("--verify-score")?;
+            }
+        } else if self.max_hypotheses.is_some()
+            || self.margin.is_some()
+            || self.verify_score.is_some()
+        {
+            bail!("--max-hypotheses, --margin and --verify-score need verification (not with --no-verify or --preset paper)");
         }
         if self.polish {
             cfg.polish = Some(ggs::pipeline::PolishConfig::default());

@@ -335,7 +335,9 @@ fn the_default_pipeline_is_bit_identical_for_any_thread_count() {
     };
     let (a, b) = (run("1"), run("2"));
     assert_eq!(a["transform"], b["transform"]);
-    assert_eq!(a["verification"]["hypotheses"].as_array().unwrap().len(), 8);
+    // Every distinct hypothesis of the search, up to the default 32.
+    let n = a["verification"]["hypotheses"].as_array().unwrap().len();
+    assert!((9..=32).contains(&n), "{n} verified");
     for k in ["transform", "evidence", "iterations"] {
         for (ha, hb) in a["verification"]["hypotheses"]
             .as_array()

@@ -71,6 +71,29 @@ fn distinct_radius_spaces_the_hypotheses() {
 }
 
 #[test]
+fn verify_score_tight_weighs_closeness_fitness_counts_the_points_within_d() {
+    let args = ["--margin", "0", "--max-hypotheses", "3"];
+    let tight = small(&args);
+    let fitness = small(&[&args[..], &["--verify-score", "fitness"]].concat());
+    assert_eq!(tight["verification"]["score"], "tight");
+    assert_eq!(fitness["verification"]["score"], "fitness");
+    let scores = |j: &Value| -> Vec<f64> {
+        j["verification"]["hypotheses"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|h| h["evidence"]["score"].as_f64().unwrap())
+            .collect()
+    };
+    let (t, f) = (scores(&tight), scores(&fitness));
+    assert_eq!(t.len(), f.len());
+    assert!(t.iter().zip(&f).all(|(t, f)| t <= f), "{t:?} {f:?}");
+    assert!(t[0] < f[0], "{t:?} {f:?}");
+    let out = ggs(&["register", "x.ply", "y.ply", "--verify-score", "close"]);
+    assert!(!out.status.success());
+}
+
+#[test]
 fn dedup_drops_the_duplicates_of_a_set() {
     let all = small(&["--no-verify", "--rotations", "hopf15"]);
     let dedup = small(&["--no-verify", "--rotations", "hopf15", "--dedup", "0.5"]);

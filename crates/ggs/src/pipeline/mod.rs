@@ -39,7 +39,7 @@ use crate::rotations::{RotationSet, DEFAULT_SET};
 use crate::transform::{rotation_angle_deg, Rigid};
 pub use polish::PolishConfig;
 use std::time::Instant;
-pub use verify::{Evidence, VerifyConfig};
+pub use verify::{Evidence, VerifyConfig, VerifyScore};
 
 /// Voxels along the target's longest side when the voxel size is chosen automatically.
 pub const AUTO_VOXEL_CELLS: usize = 32;
@@ -295,6 +295,8 @@ pub struct Verification {
     pub distance: f64,
     /// ICP cell size of the verification, cloud units.
     pub cell: f64,
+    /// How a point within `D` counted.
+    pub score: VerifyScore,
 }
 
 /// Wall times of the stages, milliseconds.
@@ -595,6 +597,7 @@ fn verify_hypotheses(
         runner_up,
         distance: verifier.distance,
         cell,
+        score: v.score,
     })
 }
 
