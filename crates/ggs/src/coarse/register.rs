@@ -212,20 +212,9 @@ impl Prepared {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::coarse::source::tests::plane;
     use crate::transform::Rigid;
     use nalgebra::Vector3;
-
-    /// A plane of `n` × `n` points `h` apart, slightly wavy.
-    fn plane(n: usize, h: f64) -> Cloud {
-        Cloud::new(
-            (0..n * n)
-                .map(|i| {
-                    let (x, y) = ((i % n) as f64 * h, (i / n) as f64 * h);
-                    [x, y, 0.1 * (3.0 * x).sin() * y]
-                })
-                .collect(),
-        )
-    }
 
     #[test]
     fn the_search_on_representatives_finds_the_rotation_of_a_dense_pair() {

@@ -26,12 +26,12 @@ pub fn representatives(source: &Cloud, s: f64) -> Option<Cloud> {
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
     use crate::refine::neighbors::PointIndex;
 
     /// A plane of `n` × `n` points `h` apart, slightly wavy.
-    fn plane(n: usize, h: f64) -> Cloud {
+    pub(in crate::coarse) fn plane(n: usize, h: f64) -> Cloud {
         Cloud::new(
             (0..n * n)
                 .map(|i| {
