@@ -65,6 +65,13 @@ impl From<BestOffset> for ApproxBest {
     }
 }
 
+/// Exact scores as intervals of width 0, for a correlator with no approximate path.
+pub fn as_intervals(
+    (exact, times): (Vec<BestOffset>, StageTimes),
+) -> (Vec<ApproxBest>, StageTimes) {
+    (exact.into_iter().map(ApproxBest::from).collect(), times)
+}
+
 /// Which scores a correlator is planned for.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Scores {
@@ -146,8 +153,7 @@ pub trait Correlator: Sync {
         src: &RotatedSources<'_>,
         indices: &[usize],
     ) -> Result<(Vec<ApproxBest>, StageTimes)> {
-        let (exact, times) = self.exact(ctl, src, indices)?;
-        Ok((exact.into_iter().map(ApproxBest::from).collect(), times))
+        Ok(as_intervals(self.exact(ctl, src, indices)?))
     }
 }
 

@@ -5,7 +5,7 @@ use super::config::{Precision, SearchConfig};
 use super::correlator::{Backend, Correlator, PassControl, Scores};
 use super::extents::{geometry_for, rotated_boxes, RotatedBox};
 use super::levels::kept_with_neighbours;
-use super::register::Prepared;
+use super::register::{ms, Prepared};
 use super::result::{CoarseLevel, Hypothesis, SearchResult, SearchStats, Timings};
 use super::selection::{exact_best, rescore_exact, LevelScores, Tally};
 use super::voxel::Occupancy;
@@ -15,10 +15,6 @@ use crate::rotations::RotationSet;
 use crate::transform::{rotation_angle_deg, Rigid};
 use nalgebra::Vector3;
 use std::time::Instant;
-
-fn ms(d: std::time::Duration) -> f64 {
-    d.as_secs_f64() * 1e3
-}
 
 /// The rotations at the voxel size: their extents, scores, and the correlator planned for
 /// the largest rotated source scored so far.

@@ -8,7 +8,8 @@
 //! they equal.
 
 use super::correlator::{
-    ApproxBest, Backend, BestOffset, Correlator, PassControl, RotatedSources, Scores, StageTimes,
+    as_intervals, ApproxBest, Backend, BestOffset, Correlator, PassControl, RotatedSources, Scores,
+    StageTimes,
 };
 use super::cpu::{CpuCorrelator, Real, Workspace};
 use super::geometry::Geometry;
@@ -102,10 +103,7 @@ impl Correlator for CpuPlan {
             CpuPlan::Approximate(c) | CpuPlan::Mixed(_, c) => {
                 run_pass(ctl, src, c, indices, |c, ws| c.approx_best(ws))
             }
-            CpuPlan::Exact(c) => {
-                let (exact, times) = run_pass(ctl, src, c, indices, |c, ws| c.best_offset(ws))?;
-                Ok((exact.into_iter().map(ApproxBest::from).collect(), times))
-            }
+            CpuPlan::Exact(_) => Ok(as_intervals(self.exact(ctl, src, indices)?)),
         }
     }
 }

@@ -21,7 +21,8 @@ use crate::memory;
 use crate::rotations::RotationSet;
 use std::time::{Duration, Instant};
 
-fn ms(d: Duration) -> f64 {
+/// Milliseconds of `d`.
+pub(super) fn ms(d: Duration) -> f64 {
     d.as_secs_f64() * 1e3
 }
 
