@@ -96,6 +96,7 @@ impl Options {
             keep_fraction: self.coarse_keep.unwrap_or(d.keep_fraction),
             keep_min: self.coarse_keep_min.unwrap_or(d.keep_min),
             neighbour_deg: d.neighbour_deg,
+            hypotheses: d.hypotheses,
         }
     }
 }

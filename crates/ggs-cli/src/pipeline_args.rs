@@ -137,6 +137,11 @@ pub struct SearchArgs {
     /// Keep at least this many rotations from the coarse level (coarse-to-fine; default 16).
     #[arg(long, value_name = "N")]
     pub coarse_keep_min: Option<usize>,
+    /// Verify also the N best distinct hypotheses of the coarse level, each with its own
+    /// translation at the coarse voxel (coarse-to-fine; default preset 8, else 0; they find
+    /// the right pose of low-overlap pairs that the voxel size ranks too low).
+    #[arg(long, value_name = "N")]
+    pub coarse_hypotheses: Option<usize>,
 }
 
 impl SearchArgs {
@@ -156,6 +161,7 @@ impl SearchArgs {
             keep_fraction: self.coarse_keep.unwrap_or(d.keep_fraction),
             keep_min: self.coarse_keep_min.unwrap_or(d.keep_min),
             neighbour_deg: d.neighbour_deg,
+            hypotheses: self.coarse_hypotheses.unwrap_or(d.hypotheses),
         };
         let mode = match (&self.search, preset) {
             (Some(name), _) => coarse::SearchMode::from_name(name, c2f).context("--search")?,

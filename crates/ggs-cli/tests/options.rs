@@ -137,6 +137,51 @@ fn coarse_keep_min_keeps_at_least_that_many_rotations() {
 }
 
 #[test]
+fn coarse_hypotheses_adds_the_coarse_levels_own_poses_to_the_verified() {
+    let level_of = |v: &Value| -> Vec<String> {
+        let hs = v["verification"]["hypotheses"].as_array().unwrap();
+        hs.iter().map(|h| s_of(&h["level"])).collect()
+    };
+    let default = small(&[]);
+    assert_eq!(default["result"]["mode"]["hypotheses"], 8);
+    let reported = default["result"]["coarse_level"]["hypotheses"]
+        .as_array()
+        .unwrap();
+    assert_eq!(reported.len(), 8);
+    let levels = level_of(&default);
+    // The voxel size's first, then the coarse level's that none of those already has.
+    let first_coarse = levels
+        .iter()
+        .position(|l| l == "coarse")
+        .unwrap_or(levels.len());
+    assert!(first_coarse >= 1);
+    assert!(levels[first_coarse..].iter().all(|l| l == "coarse"));
+    assert!(levels.len() - first_coarse <= 8);
+    for (rank, h) in default["verification"]["hypotheses"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .enumerate()
+    {
+        assert_eq!(h["rank"], rank);
+        assert!(h["settled"].is_boolean());
+    }
+    let none = small(&["--coarse-hypotheses", "0"]);
+    assert!(none["result"]["coarse_level"]["hypotheses"]
+        .as_array()
+        .unwrap()
+        .is_empty());
+    assert!(level_of(&none).iter().all(|l| l == "voxel"));
+    // Exhaustive search has no coarse level.
+    let exhaustive = small(&["--search", "exhaustive"]);
+    assert!(level_of(&exhaustive).iter().all(|l| l == "voxel"));
+}
+
+fn s_of(v: &Value) -> String {
+    v.as_str().unwrap().to_string()
+}
+
+#[test]
 fn no_pose_reads_an_e57_scan_in_its_own_frame() {
     let d = tmp_dir("ggs-options", "pose", true);
     let source = ggs::io::read_cloud(&data("bun0.pcd"), None).unwrap().cloud;

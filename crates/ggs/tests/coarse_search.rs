@@ -456,6 +456,54 @@ fn coarse_to_fine_recovers_grid_rotations() {
 }
 
 #[test]
+fn the_coarse_level_reports_distinct_hypotheses_that_place_the_source() {
+    // A cloud moved by a rotation of the set: the coarse level's best hypothesis is that
+    // rotation, its translation within one coarse cell diagonal of the truth (the thinned
+    // source's cells), and the others are more than the distinct radius apart.
+    let set = limited15();
+    for (seed, k) in [(21u64, 77usize), (22, 901)] {
+        let source = random_cloud(seed, 400);
+        let truth = Rigid::new(set.matrices[k], Vector3::new(3.1, -40.7, 12.2));
+        let target = source.transformed(&truth);
+        let c2f = CoarseToFine {
+            hypotheses: 5,
+            ..CoarseToFine::default()
+        };
+        let cfg = with_mode(0.05, SearchMode::CoarseToFine(c2f), Precision::Mixed, 1);
+        let r = coarse_register(&source, &target, set, &cfg).unwrap();
+        let level = r.stats.coarse_level.unwrap();
+        assert_eq!(level.hypotheses.len(), 5, "seed {seed}");
+        let first = &level.hypotheses[0];
+        assert_eq!(first.rotation_index, k, "seed {seed}");
+        let cell_diagonal = level.voxel * 3f64.sqrt();
+        assert!(
+            rte(&first.transform, &truth) <= cell_diagonal,
+            "seed {seed}: {} > {cell_diagonal}",
+            rte(&first.transform, &truth)
+        );
+        for (i, a) in level.hypotheses.iter().enumerate() {
+            assert!(a.error_bound >= 0.0 && a.match_score.is_finite());
+            for b in &level.hypotheses[..i] {
+                let apart = ggs::transform::rotation_angle_deg(
+                    &set.matrices[a.rotation_index],
+                    &set.matrices[b.rotation_index],
+                );
+                assert!(apart > r.stats.distinct_radius_deg, "seed {seed}: {apart}");
+            }
+        }
+        // Off unless asked for.
+        let plain = SearchMode::CoarseToFine(CoarseToFine::default());
+        let r = coarse_register(
+            &source,
+            &target,
+            set,
+            &with_mode(0.05, plain, Precision::Mixed, 1),
+        );
+        assert!(r.unwrap().stats.coarse_level.unwrap().hypotheses.is_empty());
+    }
+}
+
+#[test]
 fn coarse_to_fine_parameters_are_checked() {
     let c = random_cloud(1, 50);
     for bad in [

@@ -55,6 +55,13 @@ pub struct CoarseToFine {
     /// Also re-score every rotation within this angle (degrees) of a kept one; default: the
     /// set's step × 1.01 (its nearest grid neighbours).
     pub neighbour_deg: Option<f64>,
+    /// Report this many distinct hypotheses of the coarse level itself (best first by coarse
+    /// score, rotations more than the distinct radius apart), each with its own offset at the
+    /// coarse voxel: [`CoarseLevel::hypotheses`](super::CoarseLevel::hypotheses). A coarser
+    /// voxel tolerates the grid's rotation error where the overlap is small, so these rank
+    /// the right pose higher on low-overlap pairs (docs/pipeline.md, "Coarse-level
+    /// hypotheses"). 0: none.
+    pub hypotheses: usize,
 }
 
 impl SearchMode {
@@ -95,9 +102,13 @@ impl Default for CoarseToFine {
             keep_fraction: 0.02,
             keep_min: 16,
             neighbour_deg: None,
+            hypotheses: 0,
         }
     }
 }
+
+/// Coarse-level hypotheses the default preset reports (and verifies).
+pub const COARSE_LEVEL_HYPOTHESES: usize = 8;
 
 impl CoarseToFine {
     /// The default preset's: coarse voxel 4 × voxel, 1 % kept. Its candidates are checked by
@@ -108,6 +119,7 @@ impl CoarseToFine {
         CoarseToFine {
             factor: 4.0,
             keep_fraction: 0.01,
+            hypotheses: COARSE_LEVEL_HYPOTHESES,
             ..CoarseToFine::default()
         }
     }

@@ -2,16 +2,17 @@
 //! and the kept rotations with their grid neighbours.
 
 use super::config::{CoarseToFine, SearchConfig};
-use super::correlator::{Backend, PassControl, RotatedSources, Scores, StageTimes};
-use super::extents::{geometry_for, rotated_boxes, target_kernel};
+use super::correlator::{ApproxBest, Backend, PassControl, RotatedSources, Scores, StageTimes};
+use super::extents::{geometry_for, rotated_boxes, target_kernel, RotatedBox};
 use super::register::Prepared;
-use super::result::CoarseLevel;
+use super::result::{CoarseLevel, LevelHypothesis};
 use super::rotated::RotatableCloud;
-use crate::cloud::Cloud;
+use crate::cloud::{Cloud, Point};
 use crate::error::Result;
 use crate::rotations::RotationSet;
 use crate::thin::cell_centroids;
-use crate::transform::rotation_angle_deg;
+use crate::transform::{rotation_angle_deg, Rigid};
+use nalgebra::Vector3;
 
 /// Coarse level: score every rotation approximately at `s0 = factor × voxel` with the
 /// source thinned to one point (the mean) per cell of `s0/4`, and rank them (best first, ties
@@ -47,10 +48,78 @@ pub(super) fn coarse_candidates(
         .max(c.keep_min)
         .clamp(1, n);
     let neighbour_deg = c.neighbour_deg.unwrap_or(set.step_deg * 1.01);
-    Ok((
-        CoarseLevel::new(s0, thinned.len(), geo, keep, neighbour_deg, order),
-        times,
-    ))
+    let radius = cfg.distinct_radius_deg.unwrap_or(2.0 * set.step_deg);
+    // `prep.source` is centred on `c_x` already: the thinned copy's centroid is relative to it.
+    let cx = prep.source.centroid;
+    let frame = LevelFrame {
+        centroid: [0, 1, 2].map(|d| cx[d] + cloud.centroid[d]),
+        target_min: prep.target_min,
+        center: geo.center,
+        voxel: s0,
+    };
+    let picks = distinct_in_order(&order, c.hypotheses, radius, set);
+    let mut level = CoarseLevel::new(s0, thinned.len(), geo, keep, neighbour_deg, order);
+    level.hypotheses = picks
+        .into_iter()
+        .filter_map(|k| Some(frame.hypothesis(set, k, &found[k], boxes[k].as_ref()?)))
+        .collect();
+    Ok((level, times))
+}
+
+/// The first `count` rotations of `order` more than `radius_deg` from every earlier pick.
+fn distinct_in_order(
+    order: &[usize],
+    count: usize,
+    radius_deg: f64,
+    set: &RotationSet,
+) -> Vec<usize> {
+    let mut picks: Vec<usize> = Vec::with_capacity(count);
+    for &k in order {
+        if picks.len() >= count {
+            break;
+        }
+        let far = |&j: &usize| rotation_angle_deg(&set.matrices[j], &set.matrices[k]) > radius_deg;
+        if picks.iter().all(far) {
+            picks.push(k);
+        }
+    }
+    picks
+}
+
+/// What turns an offset of the coarse level into a transform.
+struct LevelFrame {
+    /// Centroid of the thinned source the level rotated, in the source's frame.
+    centroid: Point,
+    target_min: Point,
+    /// Kernel centre `C` of the level's geometry, cells.
+    center: [usize; 3],
+    voxel: f64,
+}
+
+impl LevelFrame {
+    /// `t = −R·c_x − min + (C − a)·s₀ + m_y`, as at the voxel size (docs/method.md).
+    fn hypothesis(
+        &self,
+        set: &RotationSet,
+        k: usize,
+        best: &ApproxBest,
+        bx: &RotatedBox,
+    ) -> LevelHypothesis {
+        let r = set.matrices[k];
+        let mut t = -(r * Vector3::from(self.centroid));
+        for d in 0..3 {
+            t[d] += -bx.min[d]
+                + (self.center[d] as f64 - best.offset[d] as f64) * self.voxel
+                + self.target_min[d];
+        }
+        LevelHypothesis {
+            rotation_index: k,
+            match_score: best.value,
+            error_bound: best.error_bound,
+            offset: best.offset,
+            transform: Rigid::new(r, t),
+        }
+    }
 }
 
 /// The `keep` best rotations of the coarse order and every rotation within

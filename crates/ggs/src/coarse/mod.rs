@@ -51,8 +51,9 @@ pub mod voxel;
 
 pub use config::{
     auto_voxel, round_2_digits, CoarseToFine, Precision, ProgressFn, SearchConfig, SearchMode,
+    COARSE_LEVEL_HYPOTHESES,
 };
 pub use correlator::{Backend, Correlator, CpuBackend, Scores};
 pub use register::{coarse_register, coarse_register_with};
-pub use result::{CoarseLevel, Hypothesis, SearchResult, SearchStats, Timings};
+pub use result::{CoarseLevel, Hypothesis, LevelHypothesis, SearchResult, SearchStats, Timings};
 pub use source::{representatives, MIN_POINTS_PER_REPRESENTATIVE, REPRESENTATIVE_DIVISIONS};

@@ -146,6 +146,21 @@ impl serde::Serialize for SearchResult {
     }
 }
 
+/// A hypothesis of the coarse level: a rotation, the offset of its largest approximate
+/// (f32) correlation output at the coarse voxel, and the transform of that offset. Its score
+/// is approximate, within `error_bound` of the exact one; it serves as a start for the
+/// verification, never as the search's pick.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct LevelHypothesis {
+    pub rotation_index: usize,
+    /// Approximate match score `5·n11 − n01` at the coarse voxel.
+    pub match_score: f64,
+    pub error_bound: f64,
+    pub offset: [usize; 3],
+    #[serde(serialize_with = "crate::transform::serialize_rows")]
+    pub transform: Rigid,
+}
+
 /// What the coarse level of a coarse-to-fine search did.
 #[derive(Debug, Clone, serde::Serialize)]
 pub struct CoarseLevel {
@@ -161,6 +176,9 @@ pub struct CoarseLevel {
     /// Rounds of fine scoring: `kept` doubled after each round whose winner ranked in the
     /// lower half of it (1 when the coarse ranking was clear).
     pub rounds: usize,
+    /// The best distinct hypotheses at this level's voxel, best first
+    /// ([`CoarseToFine::hypotheses`](super::CoarseToFine::hypotheses) of them).
+    pub hypotheses: Vec<LevelHypothesis>,
     #[serde(skip)]
     rank: Vec<usize>,
     #[serde(skip)]
@@ -189,6 +207,7 @@ impl CoarseLevel {
             neighbour_deg,
             winner_rank: 0,
             rounds: 0,
+            hypotheses: Vec::new(),
             rank,
             order,
         }

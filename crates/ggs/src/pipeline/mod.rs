@@ -266,8 +266,11 @@ impl Default for RegistrationConfig {
 /// One coarse hypothesis after polish and verification.
 #[derive(Debug, Clone, serde::Serialize)]
 pub struct VerifiedHypothesis {
-    /// Rank among the coarse search's distinct hypotheses (0: its winner).
+    /// Position in the verified list: the voxel size's distinct hypotheses in coarse rank
+    /// order (0: the search's winner), then the coarse level's.
     pub rank: usize,
+    /// Which level of the search proposed it.
+    pub level: HypothesisLevel,
     pub rotation_index: usize,
     /// Coarse match score `5·n11 − n01` at the grid rotation, and after the polish.
     pub match_score: i64,
@@ -280,12 +283,24 @@ pub struct VerifiedHypothesis {
     pub evidence: Evidence,
     pub iterations: usize,
     pub rejected_early: bool,
+    /// Refined again on finer cells because another distinct pose also survived.
+    pub settled: bool,
+}
+
+/// The level of the coarse search a hypothesis comes from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum HypothesisLevel {
+    /// The voxel size: an exact argmax (`SearchResult::hypotheses`).
+    Voxel,
+    /// The coarse level of a coarse-to-fine search (`CoarseLevel::hypotheses`).
+    Coarse,
 }
 
 /// What the verification found.
 #[derive(Debug, Clone, serde::Serialize)]
 pub struct Verification {
-    /// The verified hypotheses, in coarse rank order.
+    /// The verified hypotheses: the voxel size's in coarse rank order, then the coarse level's.
     pub hypotheses: Vec<VerifiedHypothesis>,
     /// Index into `hypotheses` of the chosen one.
     pub chosen: usize,
@@ -500,8 +515,13 @@ fn maybe_polished(
 }
 
 /// The hypotheses to verify: the winner and every distinct one whose match score is at
-/// least `margin` × the winner's, at most `max_hypotheses`.
-fn candidates<'a>(coarse: &'a SearchResult, v: &VerifyConfig) -> &'a [Hypothesis] {
+/// least `margin` × the winner's, at most `max_hypotheses`; then the coarse level's
+/// hypotheses (coarse-to-fine) whose pose none of those already has.
+fn candidates(
+    coarse: &SearchResult,
+    v: &VerifyConfig,
+    agree: impl Fn(&Rigid, &Rigid) -> bool,
+) -> Vec<(Hypothesis, HypothesisLevel)> {
     let best = coarse.hypotheses[0].match_score;
     let n = coarse
         .hypotheses
@@ -510,7 +530,24 @@ fn candidates<'a>(coarse: &'a SearchResult, v: &VerifyConfig) -> &'a [Hypothesis
         .take_while(|h| best > 0 && h.match_score as f64 >= v.margin * best as f64)
         .count()
         .max(1);
-    &coarse.hypotheses[..n]
+    let mut out: Vec<(Hypothesis, HypothesisLevel)> = coarse.hypotheses[..n]
+        .iter()
+        .map(|h| (*h, HypothesisLevel::Voxel))
+        .collect();
+    let level = coarse.stats.coarse_level.as_ref();
+    for h in level.map_or(&[][..], |l| &l.hypotheses[..]) {
+        if out.iter().all(|(o, _)| !agree(&o.transform, &h.transform)) {
+            let as_hypothesis = Hypothesis {
+                rotation_index: h.rotation_index,
+                score: h.match_score.round() as i64,
+                match_score: h.match_score.round() as i64,
+                offset: h.offset,
+                transform: h.transform,
+            };
+            out.push((as_hypothesis, HypothesisLevel::Coarse));
+        }
+    }
+    out
 }
 
 /// What the verification works on.
@@ -544,34 +581,6 @@ fn verify_hypotheses(
         ..RefineConfig::default()
     });
     let thinned = PreparedPair::thinned(source, target, cell, icp.neighbors, icp.epsilon)?;
-    let mut out: Vec<VerifiedHypothesis> = Vec::new();
-    let mut best = 0.0f64;
-    for (rank, h) in candidates(coarse, v).iter().enumerate() {
-        let polished = maybe_polished(source, target, h, search, cfg)?;
-        let c = verify::check(&thinned, &verifier, &polished.transform, &icp, v, best)?;
-        best = best.max(c.evidence.score);
-        out.push(VerifiedHypothesis {
-            rank,
-            rotation_index: h.rotation_index,
-            match_score: h.match_score,
-            polished_match_score: polished.match_score,
-            coarse_transform: h.transform,
-            transform: c.transform,
-            evidence: c.evidence,
-            iterations: c.iterations,
-            rejected_early: c.rejected_early,
-        });
-    }
-    // Best score first, ties to the better rank (the first in `out`).
-    let chosen = (0..out.len())
-        .reduce(|a, b| {
-            if out[b].evidence.score > out[a].evidence.score {
-                b
-            } else {
-                a
-            }
-        })
-        .expect("the winner is always verified");
     // Translations compared where they put the source's centroid: `t` itself depends on the
     // frame's origin (1° apart about an origin 4000 km away, as in UTM coordinates, is 70 km).
     let c = source.centroid().expect("non-empty");
@@ -582,15 +591,41 @@ fn verify_hypotheses(
         rotation_angle_deg(&a.rotation, &b.rotation) > coarse.stats.distinct_radius_deg
             || moved > DISTINCT_TRANSLATION_VOXELS * voxel
     };
-    let runner_up = (0..out.len())
-        .filter(|&k| distinct(&out[k].transform, &out[chosen].transform))
-        .reduce(|a, b| {
-            if out[b].evidence.score > out[a].evidence.score {
-                b
-            } else {
-                a
-            }
+    let mut out: Vec<VerifiedHypothesis> = Vec::new();
+    let mut best = 0.0f64;
+    let todo = candidates(coarse, v, |a, b| !distinct(a, b));
+    for (rank, (h, level)) in todo.iter().enumerate() {
+        let polished = maybe_polished(source, target, h, search, cfg)?;
+        let c = verify::check(&thinned, &verifier, &polished.transform, &icp, v, best)?;
+        best = best.max(c.evidence.score);
+        out.push(VerifiedHypothesis {
+            rank,
+            level: *level,
+            rotation_index: h.rotation_index,
+            match_score: h.match_score,
+            polished_match_score: polished.match_score,
+            coarse_transform: h.transform,
+            transform: c.transform,
+            evidence: c.evidence,
+            iterations: c.iterations,
+            rejected_early: c.rejected_early,
+            settled: false,
         });
+    }
+    let finer = || {
+        PreparedPair::thinned(
+            source,
+            target,
+            v.fine_cell_voxels * voxel,
+            icp.neighbors,
+            icp.epsilon,
+        )
+    };
+    settle_contested(&mut out, &verifier, finer, &icp, v, &distinct)?;
+    let chosen = best_scoring(&out, |_| true).expect("the winner is always verified");
+    let runner_up = best_scoring(&out, |k| {
+        distinct(&out[k].transform, &out[chosen].transform)
+    });
     Ok(Verification {
         hypotheses: out,
         chosen,
@@ -599,6 +634,62 @@ fn verify_hypotheses(
         cell,
         score: v.score,
     })
+}
+
+/// Index of the best-scoring hypothesis among those `eligible`; ties to the better rank.
+fn best_scoring(out: &[VerifiedHypothesis], eligible: impl Fn(usize) -> bool) -> Option<usize> {
+    (0..out.len()).filter(|&k| eligible(k)).reduce(|a, b| {
+        if out[b].evidence.score > out[a].evidence.score {
+            b
+        } else {
+            a
+        }
+    })
+}
+
+/// When two distinct poses both score at least `reject_ratio` × the best, refines each
+/// contender again on clouds thinned to the finer cells of `fine_cell_voxels` (built only
+/// then, `finer`) for `fine_iterations`, and re-scores it: on the coarser cells a right pose
+/// of a small overlap stops short (too few points where the clouds overlap) and loses to a
+/// loose look-alike (docs/pipeline.md, "Settling contested poses"). A clear pair costs
+/// nothing more.
+fn settle_contested(
+    out: &mut [VerifiedHypothesis],
+    verifier: &verify::Verifier,
+    finer: impl FnOnce() -> Result<PreparedPair>,
+    icp: &RefineConfig,
+    v: &VerifyConfig,
+    distinct: &dyn Fn(&Rigid, &Rigid) -> bool,
+) -> Result<()> {
+    if v.fine_cell_voxels <= 0.0 || v.fine_iterations == 0 {
+        return Ok(());
+    }
+    let best = out.iter().map(|h| h.evidence.score).fold(0.0, f64::max);
+    let contenders: Vec<usize> = (0..out.len())
+        .filter(|&k| !out[k].rejected_early && out[k].evidence.score >= v.reject_ratio * best)
+        .collect();
+    let contested = contenders.iter().any(|&a| {
+        contenders
+            .iter()
+            .any(|&b| distinct(&out[a].transform, &out[b].transform))
+    });
+    if !contested {
+        return Ok(());
+    }
+    let pair = finer()?;
+    let c = RefineConfig {
+        max_iterations: v.fine_iterations,
+        ..*icp
+    };
+    for k in contenders {
+        let r = refine_prepared(&pair, &out[k].transform, &c)?;
+        let h = &mut out[k];
+        h.transform = r.transform;
+        h.evidence = verifier.evidence(&r.transform);
+        h.iterations += r.report.iterations;
+        h.settled = true;
+    }
+    Ok(())
 }
 
 /// Confidence, the ambiguity flag and the warnings of a result.

@@ -62,6 +62,11 @@ pub struct VerifyConfig {
     pub max_iterations: usize,
     /// A hypothesis scoring below this fraction of the best so far at the check stops.
     pub reject_ratio: f64,
+    /// Contested poses (two distinct ones above `reject_ratio` × the best) are refined
+    /// again on clouds thinned to cells of this many voxels (0: never).
+    pub fine_cell_voxels: f64,
+    /// ICP iterations of that second refinement.
+    pub fine_iterations: usize,
     /// Two distinct poses whose scores are within this ratio make the result ambiguous.
     pub ambiguous_ratio: f64,
     /// How a point within `D` counts.
@@ -104,12 +109,14 @@ impl Default for VerifyConfig {
         VerifyConfig {
             margin: 0.5,
             max_hypotheses: 32,
-            distance_voxels: 0.3,
+            distance_voxels: 0.2,
             spacing_factor: 2.0,
             cell_voxels: 0.5,
             check_iterations: 10,
             max_iterations: 30,
             reject_ratio: 0.6,
+            fine_cell_voxels: 0.25,
+            fine_iterations: 50,
             ambiguous_ratio: 0.9,
             score: VerifyScore::Tight,
         }
