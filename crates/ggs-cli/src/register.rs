@@ -384,9 +384,13 @@ fn print_verification(v: &Verification) -> Result<()> {
             ""
         };
         outln!(
-            "  #{} rotation {} match {} → {} after polish, score {:.3} (source {:.3}, target {:.3}), {} ICP iterations{}{}",
+            "  #{} rotation {}{} match {} → {} after polish, score {:.3} (source {:.3}, target {:.3}), {} ICP iterations{}{}{}",
             h.rank + 1,
             h.rotation_index,
+            match h.level {
+                ggs::pipeline::HypothesisLevel::Coarse => " (coarse level)",
+                ggs::pipeline::HypothesisLevel::Voxel => "",
+            },
             h.match_score,
             h.polished_match_score,
             h.evidence.score,
@@ -394,6 +398,7 @@ fn print_verification(v: &Verification) -> Result<()> {
             h.evidence.fitness_target,
             h.iterations,
             if h.rejected_early { ", rejected early" } else { "" },
+            if h.settled { ", settled on finer cells" } else { "" },
             mark
         );
     }

@@ -116,7 +116,8 @@ fn json_output_and_files() {
     assert_eq!(j["preset"], "default");
     let v = &j["verification"];
     let verified = v["hypotheses"].as_array().unwrap();
-    assert!(!verified.is_empty() && verified.len() <= 8, "{v}");
+    // At most 32 from the voxel size, then up to 8 of the coarse level's.
+    assert!(!verified.is_empty() && verified.len() <= 40, "{v}");
     let chosen = v["chosen"].as_u64().unwrap() as usize;
     assert_eq!(j["chosen_rank"], verified[chosen]["rank"]);
     let c = j["confidence"].as_f64().unwrap();
@@ -315,6 +316,18 @@ fn the_default_summary_shows_the_verified_hypotheses_and_the_confidence() {
     let out = register_pair(&["--max-hypotheses", "4", "--margin", "0"]);
     let text = String::from_utf8_lossy(&out.stdout);
     assert!(out.status.success(), "{text}");
+    assert!(text.contains(" (coarse level) "), "{text}");
+    let out = register_pair(&[
+        "--max-hypotheses",
+        "4",
+        "--margin",
+        "0",
+        "--coarse-hypotheses",
+        "0",
+    ]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{text}");
+    assert!(!text.contains("coarse level"), "{text}");
     assert!(
         text.contains("preset default: 6360 rotations (hopf15-id), coarse-to-fine"),
         "{text}"
