@@ -66,6 +66,12 @@ fn verified_list<'py>(py: Python<'py>, reg: &Registration) -> PyResult<Bound<'py
         d.set_item("fitness_target", h.evidence.fitness_target)?;
         d.set_item("iterations", h.iterations)?;
         d.set_item("rejected_early", h.rejected_early)?;
+        let level = match h.level {
+            ggs::pipeline::HypothesisLevel::Voxel => "voxel",
+            ggs::pipeline::HypothesisLevel::Coarse => "coarse",
+        };
+        d.set_item("level", level)?;
+        d.set_item("settled", h.settled)?;
         d.set_item("chosen", k == v.chosen)?;
         d.set_item("runner_up", Some(k) == v.runner_up)?;
         d.set_item(

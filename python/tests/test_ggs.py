@@ -401,7 +401,10 @@ def test_progress_callback_and_every_option_reachable():
         max_memory="2G", margin=0.0, max_hypotheses=3, top_k=2, dedup=1.0, coarse_factor=3.0,
         coarse_keep=0.05, coarse_keep_min=8, max_distance=0.01, max_iterations=40, neighbors=15,
     )
-    assert len(r.verified) == 3 and len(r.hypotheses) == 2
+    # max_hypotheses counts the voxel size's; the coarse level's follow them.
+    levels = [h["level"] for h in r.verified]
+    assert levels.count("voxel") == 3 and len(r.hypotheses) == 2
+    assert levels[:3] == ["voxel"] * 3 and set(levels[3:]) <= {"coarse"}
     assert r.report["correspondence_distance"] == 0.01 and r.report["iterations"] <= 40
 
 
