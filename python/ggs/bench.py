@@ -104,7 +104,7 @@ def run(
     pairs: Optional[str] = None,
     limit: Optional[int] = None,
     shard: Optional[str] = None,
-    voxel: Optional[float] = None,
+    voxel: Union[float, str, None] = None,
     move_seed: Optional[int] = None,
     max_rre: Optional[float] = None,
     max_rte: Optional[float] = None,
@@ -121,7 +121,9 @@ def run(
     protocol: ``"3dmatch"``, ``"kitti"``, ``"eth"``, ``"fpv1"`` (with ``data``, the clouds'
       directory), or the path of a manifest (``pairs.tsv`` format).
     pairs, limit, shard, voxel, move_seed, max_rre, max_rte: as ``ggs bench``'s ``--pairs``,
-      ``--limit``, ``--shard I/N``, ``--voxel``, ``--move-seed``, ``--max-rre``, ``--max-rte``.
+      ``--limit``, ``--shard I/N``, ``--voxel`` (a size or ``"auto"``, the voxel
+      :func:`ggs.register` picks with no ``voxel``), ``--move-seed``, ``--max-rre``,
+      ``--max-rte``.
     executor: ``"local"`` (this process, one pair after another) or ``"ray"`` (one Ray task
       per pair). threads: per pair; for Ray each task reserves this many CPUs (default 1),
       locally None means all cores. retries: Ray's retries of a task whose worker died; a

@@ -10,7 +10,7 @@ use crate::arrays::to_py_err;
 use crate::interrupt::run_interruptible;
 use crate::registration::{pipeline_config, Options};
 use ggs_bench::benchmark::shard::Shard;
-use ggs_bench::benchmark::{run_pair_with_picture, PairRow, Plan, RunDir, Selection};
+use ggs_bench::benchmark::{run_pair_with_picture, BenchVoxel, PairRow, Plan, RunDir, Selection};
 use pyo3::exceptions::{PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyBytes;
@@ -29,10 +29,27 @@ struct SelectionArgs {
     pairs: Option<String>,
     limit: Option<usize>,
     shard: Option<String>,
-    voxel: Option<f64>,
+    voxel: Option<VoxelArg>,
     move_seed: Option<u64>,
     max_rre: Option<f64>,
     max_rte: Option<f64>,
+}
+
+/// `voxel=`: a number or `"auto"`.
+#[derive(FromPyObject)]
+enum VoxelArg {
+    Size(f64),
+    Name(String),
+}
+
+impl VoxelArg {
+    fn parse(self) -> PyResult<BenchVoxel> {
+        let text = match self {
+            VoxelArg::Size(v) => v.to_string(),
+            VoxelArg::Name(s) => s,
+        };
+        text.parse().map_err(to_py_err)
+    }
 }
 
 /// A validated benchmark run: its pairs and configuration.
@@ -58,7 +75,7 @@ impl BenchPlan {
                 .map(Shard::parse)
                 .transpose()
                 .map_err(to_py_err)?,
-            voxel: s.voxel,
+            voxel: s.voxel.map(VoxelArg::parse).transpose()?,
             move_seed: s.move_seed,
             max_rre_deg: s.max_rre,
             max_rte: s.max_rte,

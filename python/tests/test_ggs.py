@@ -443,6 +443,19 @@ def test_register_many(tmp_path):
         ggs.register_many([(tmp_path / "missing.ply", tgt)], voxel=0.006)
 
 
+def test_bench_voxel_auto_registers_as_with_no_voxel(tmp_path):
+    t = "0.825336 0 -0.564642 0.037267 0 1 0 0 0.564642 0 0.825336 0.038325 0 0 0 1"
+    manifest = tmp_path / "pairs.tsv"
+    manifest.write_text(f"fwd\t{DATA / 'bun0.pcd'}\t{DATA / 'bun4.pcd'}\t{t}\texact\t0.006\n")
+    run = ggs.bench.run(manifest, out=tmp_path / "run", voxel="auto", threads=2, progress=False)
+    plain = ggs.register(*bunny_small())
+    row = run.pairs[0]
+    assert float(row["voxel"]) == plain.voxel != 0.006
+    assert float(row["max_rte"]) == pytest.approx(3 * 0.006)
+    with pytest.raises(ValueError, match="neither 'auto' nor a positive number"):
+        ggs.bench.run(manifest, out=tmp_path / "bad", voxel="big", progress=False)
+
+
 def test_docstrings_and_signatures_are_visible_at_runtime():
     import inspect
 

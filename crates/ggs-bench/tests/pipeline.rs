@@ -1,7 +1,8 @@
-//! The default pipeline on the real pairs of `shared/data/pairs.tsv`, as they are (at the
-//! pair's voxel) and with every source moved by a seeded random rigid motion (with no voxel
-//! given: the automatic rule, what a user who types no flag gets): the same pairs must be
-//! solved both ways (10° and 3 of the pair's voxels, the manifest protocol). Also: a correct hypothesis 15° off ends
+//! The default pipeline on the real pairs of `shared/data/pairs.tsv`: as they are at the
+//! pair's voxel, as they are with no voxel given (the automatic rule, what a user who types
+//! no flag gets), and with every source moved by a seeded random rigid motion (automatic
+//! voxel): every pair but the known failures must be solved each way (10° and 3 of the
+//! pair's voxels, the manifest protocol). Also: a correct hypothesis 15° off ends
 //! correct (the verification's ICP schedule), and the whole pipeline is bit-identical on 1
 //! and 2 threads.
 //!
@@ -22,8 +23,13 @@ use ggs_bench::benchmark::motion::random_motion;
 use ggs_bench::manifest::read_manifest;
 use nalgebra::{Rotation3, Vector3};
 
-/// The two ≈ 20 %-overlap pairs that no configuration here solves (see docs/pipeline.md).
+/// The two ≈ 20 %-overlap pairs (see docs/pipeline.md).
 const LOW_OVERLAP: &[&str] = &["bunny_ear_back_bun270", "bunny_top2_bun045"];
+
+/// The pair the defaults do not solve, at the pair's voxel and at the automatic one: its
+/// right pose is among no verified hypotheses. ear_back is solved each way, narrowly
+/// (confidence 0.007 at its manifest voxel, 0.12 at the automatic one: docs/pipeline.md).
+const UNSOLVED: &[&str] = &["bunny_top2_bun045"];
 
 fn config(voxel: f64, threads: usize) -> RegistrationConfig {
     config_with(VoxelSize::Fixed(voxel), threads)
@@ -50,12 +56,12 @@ fn the_defaults_solve_the_real_pairs_moved_or_not() {
     };
     let pairs = read_manifest(&shared.join("data/pairs.tsv")).unwrap();
     let mut failures = Vec::new();
-    eprintln!("| pair | moved, auto voxel | solved | RRE ° | RTE / voxel | chosen rank | right pose's rank | verified | confidence | ambiguous |");
-    eprintln!("|---|---|---|---|---|---|---|---|---|---|");
+    eprintln!("| pair | moved | voxel | solved | RRE ° | RTE / voxel | chosen rank | right pose's rank | verified | confidence | ambiguous |");
+    eprintln!("|---|---|---|---|---|---|---|---|---|---|---|");
     for pair in &pairs {
         let source = read_cloud(&pair.source, None).unwrap().cloud;
         let target = read_cloud(&pair.target, None).unwrap().cloud;
-        for moved in [false, true] {
+        for (moved, auto) in [(false, false), (false, true), (true, true)] {
             let (src, truth) = if moved {
                 let m = random_motion(1, &pair.name, &source);
                 (
@@ -65,7 +71,7 @@ fn the_defaults_solve_the_real_pairs_moved_or_not() {
             } else {
                 (source.clone(), pair.ground_truth)
             };
-            let voxel = if moved {
+            let voxel = if auto {
                 VoxelSize::AUTO
             } else {
                 VoxelSize::Fixed(pair.voxel)
@@ -75,18 +81,19 @@ fn the_defaults_solve_the_real_pairs_moved_or_not() {
             let solved = is_success(e_r, e_t, 10.0, 3.0 * pair.voxel);
             let verified = reg.verification.as_ref().map_or(0, |v| v.hypotheses.len());
             eprintln!(
-                "| {} | {moved} | {solved} | {e_r:.2} | {:.2} | {} | {} | {verified} | {:.3} | {} |",
+                "| {} | {moved} | {} | {solved} | {e_r:.2} | {:.2} | {} | {} | {verified} | {:.3} | {} |",
                 pair.name,
+                reg.voxel,
                 e_t / pair.voxel,
                 reg.chosen_rank,
                 right_rank(&reg, &truth).map_or("absent".into(), |r| r.to_string()),
                 reg.confidence,
                 reg.ambiguous
             );
-            let expected = !LOW_OVERLAP.contains(&pair.name.as_str());
+            let expected = !UNSOLVED.contains(&pair.name.as_str());
             if solved != expected {
                 failures.push(format!(
-                    "{} (moved: {moved}): solved {solved}, RRE {e_r:.2}°",
+                    "{} (moved: {moved}, auto voxel: {auto}): solved {solved}, RRE {e_r:.2}°",
                     pair.name
                 ));
             }

@@ -5,7 +5,7 @@ use crate::pipeline_args::PipelineArgs;
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use ggs_bench::benchmark::shard::Shard;
-use ggs_bench::benchmark::{self, Plan, Selection};
+use ggs_bench::benchmark::{self, BenchVoxel, Plan, Selection};
 use std::path::PathBuf;
 
 #[derive(Args)]
@@ -32,9 +32,11 @@ pub struct BenchArgs {
     /// Only pairs whose id contains one of these comma-separated substrings.
     #[arg(long, value_name = "A,B")]
     pub pairs: Option<String>,
-    /// Voxel size (default: the protocol's, or each manifest pair's own).
-    #[arg(long)]
-    pub voxel: Option<f64>,
+    /// Voxel size, or `auto`: the automatic voxel of `ggs register` with no flag, so the run
+    /// measures what a user who gives no flag gets (success thresholds unchanged). Default:
+    /// the protocol's, or each manifest pair's own.
+    #[arg(long, value_name = "VOXEL|auto")]
+    pub voxel: Option<BenchVoxel>,
     #[command(flatten)]
     pub pipeline: PipelineArgs,
     /// Move every source by a random rigid motion (uniform rotation, translation up to the

@@ -68,6 +68,47 @@ fn manifest_run_writes_its_files_and_resumes() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
+/// `--voxel auto` registers with the voxel `ggs register` picks with no flag, and keeps the
+/// pair's own thresholds (3 × its voxel for the RTE).
+#[test]
+fn voxel_auto_registers_as_with_no_flag_and_keeps_the_pairs_thresholds() {
+    let dir = tmp("auto");
+    let m = manifest(&dir);
+    let out = dir.join("run");
+    let o = bench_manifest(&m, &out, &["--voxel", "auto", "--threads", "2", "-q"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("results.json")).unwrap()).unwrap();
+    let data = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../tests/data");
+    let plain = ggs(&[
+        "register",
+        s(&data.join("bun0.pcd")),
+        s(&data.join("bun4.pcd")),
+        "--json",
+        "-q",
+    ]);
+    let plain: serde_json::Value = serde_json::from_slice(&plain.stdout).unwrap();
+    let fwd = &json["pairs"][0];
+    assert_eq!(fwd["voxel"], plain["voxel"], "{fwd}");
+    assert_ne!(fwd["voxel"], 0.006);
+    assert_eq!(fwd["max_rte"], 3.0 * 0.006);
+    let rows: Vec<serde_json::Value> = plain["transform"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .flat_map(|r| r.as_array().unwrap().clone())
+        .collect();
+    assert_eq!(fwd["transform"], serde_json::Value::Array(rows));
+    let run: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("run.json")).unwrap()).unwrap();
+    assert_eq!(run["voxel"], "auto");
+    assert_fails(
+        &["bench", "manifest", s(&m), "--voxel", "big"],
+        "'big' is neither 'auto' nor a positive number",
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
 fn assert_fails(args: &[&str], needle: &str) {
     let o = ggs(args);
     let err = String::from_utf8_lossy(&o.stderr);

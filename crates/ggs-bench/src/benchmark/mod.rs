@@ -134,11 +134,49 @@ pub fn missing_files(pairs: &[BenchPair], first: usize) -> (usize, Vec<PathBuf>)
     (count, listed)
 }
 
+/// A voxel size forced on every pair of a benchmark (`--voxel`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum BenchVoxel {
+    /// This edge length, in the clouds' units; the RTE threshold is 3 of them.
+    Fixed(f64),
+    /// The automatic voxel of `ggs register` with no flag ([`VoxelSize::AUTO`]), so that the
+    /// benchmark measures what a user who gives no flag gets. The success thresholds stay
+    /// the pair's (or the protocol's): 3 × its own voxel for the RTE.
+    Auto,
+}
+
+impl std::str::FromStr for BenchVoxel {
+    type Err = GgsError;
+    /// `auto` or a positive number.
+    fn from_str(s: &str) -> Result<Self> {
+        if s == "auto" {
+            return Ok(BenchVoxel::Auto);
+        }
+        match s.parse::<f64>() {
+            Ok(v) if v.is_finite() && v > 0.0 => Ok(BenchVoxel::Fixed(v)),
+            _ => Err(GgsError::param(
+                "voxel",
+                format!("'{s}' is neither 'auto' nor a positive number"),
+            )),
+        }
+    }
+}
+
+impl BenchVoxel {
+    /// As it appears in `run.json`: the number, or `"auto"`.
+    fn to_json(self) -> serde_json::Value {
+        match self {
+            BenchVoxel::Fixed(v) => serde_json::json!(v),
+            BenchVoxel::Auto => serde_json::json!("auto"),
+        }
+    }
+}
+
 /// How to run each pair.
 #[derive(Debug, Clone)]
 pub struct RunConfig {
     /// Forced voxel size; otherwise the pair's, otherwise the protocol's.
-    pub voxel: Option<f64>,
+    pub voxel: Option<BenchVoxel>,
     /// The registration pipeline; its voxel is set per pair.
     pub pipeline: RegistrationConfig,
     pub max_rre_deg: f64,
@@ -162,7 +200,7 @@ impl RunConfig {
         serde_json::json!({
             "ggs": env!("CARGO_PKG_VERSION"),
             "protocol": protocol,
-            "voxel": self.voxel,
+            "voxel": self.voxel.map(BenchVoxel::to_json),
             "default_voxel": self.default_voxel,
             "max_rre_deg": self.max_rre_deg,
             "max_rte": self.max_rte,
@@ -222,11 +260,11 @@ fn run_pair_pictured(
     let t0 = Instant::now();
     let mut row = PairRow::new(&pair.id, pair.overlap);
     let mut image = None;
-    let voxel = cfg.voxel.or(pair.voxel).or(cfg.default_voxel);
     let result = (|| -> Result<()> {
-        let voxel = voxel.ok_or_else(|| GgsError::param("voxel", "no voxel size for this pair"))?;
-        row.voxel = voxel;
-        row.max_rte = cfg.max_rte.unwrap_or(3.0 * voxel);
+        let (voxel, threshold_voxel) = pair_voxels(pair, cfg)?;
+        if let VoxelSize::Fixed(v) = voxel {
+            row.voxel = v;
+        }
         row.max_rre_deg = cfg.max_rre_deg;
         let (mut source, target) = (pair.source.load()?, pair.target.load()?);
         let mut truth = pair.ground_truth;
@@ -239,8 +277,12 @@ fn run_pair_pictured(
         row.target_points = target.len();
         row.read_ms = t0.elapsed().as_secs_f64() * 1e3;
         let mut pc = cfg.pipeline.clone();
-        pc.voxel = VoxelSize::Fixed(voxel);
+        pc.voxel = voxel;
         let reg = register(&source, &target, &pc)?;
+        row.voxel = reg.voxel;
+        row.max_rte = cfg
+            .max_rte
+            .unwrap_or(3.0 * threshold_voxel.unwrap_or(reg.voxel));
         fill_row(&mut row, &reg, &truth);
         if picture && !row.success {
             let t = &reg.transform;
@@ -259,6 +301,18 @@ fn run_pair_pictured(
     }
     row.total_ms = t0.elapsed().as_secs_f64() * 1e3;
     (row, image)
+}
+
+/// The voxel size to register `pair` with, and the voxel whose multiple is the pair's RTE
+/// threshold (see [`BenchVoxel`]; `None`: the automatic voxel itself, for a pair and
+/// protocol that give none).
+fn pair_voxels(pair: &BenchPair, cfg: &RunConfig) -> Result<(VoxelSize, Option<f64>)> {
+    let own = pair.voxel.or(cfg.default_voxel);
+    match (cfg.voxel, own) {
+        (Some(BenchVoxel::Fixed(v)), _) | (None, Some(v)) => Ok((VoxelSize::Fixed(v), Some(v))),
+        (Some(BenchVoxel::Auto), _) => Ok((VoxelSize::AUTO, own)),
+        (None, None) => Err(GgsError::param("voxel", "no voxel size for this pair")),
+    }
 }
 
 /// Coarse rank of the first hypothesis whose pose meets the thresholds: the verified poses

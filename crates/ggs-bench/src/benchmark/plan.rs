@@ -3,7 +3,7 @@
 //! Python, whichever executor runs the pairs).
 
 use super::shard::{Shard, ShardFile};
-use super::{missing_files, BenchPair, Protocol, RunConfig};
+use super::{missing_files, BenchPair, BenchVoxel, Protocol, RunConfig};
 use ggs::error::{GgsError, Result};
 use ggs::pipeline::RegistrationConfig;
 use ggs::rotations::RotationSet;
@@ -24,8 +24,8 @@ pub struct Selection {
     pub limit: Option<usize>,
     /// Only this share of the selected pairs.
     pub shard: Option<Shard>,
-    /// Forced voxel size (default: the pair's, else the protocol's).
-    pub voxel: Option<f64>,
+    /// Forced voxel size, or the automatic one (default: the pair's, else the protocol's).
+    pub voxel: Option<BenchVoxel>,
     /// Move every source by a random motion from this seed ([`super::motion`]).
     pub move_seed: Option<u64>,
     /// Success thresholds (default: the protocol's).
