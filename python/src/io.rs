@@ -42,9 +42,9 @@ pub(crate) fn read_point_cloud<'py>(
         mesh_samples: sample_mesh,
     };
     let loaded = py
-        .detach(|| io::read_cloud_with(&path, &opts))
+        .detach(|| io::read_points_with(&path, &opts))
         .map_err(to_py_err)?;
-    points_array(py, &loaded.cloud.points)
+    points_array(py, &loaded.points)
 }
 
 /// Write an (N, 3) array to a point-cloud file, atomically.

@@ -156,8 +156,8 @@ fn kitti_like(dir: &Path) -> Vec<BenchPair> {
     let gt = Rigid::from_row_major(&v, 1e-6).unwrap();
     let seq = dir.join("08/velodyne");
     std::fs::create_dir_all(&seq).unwrap();
-    write_kitti_bin(&seq.join("000000.bin"), &a.points).unwrap();
-    write_kitti_bin(&seq.join("000001.bin"), &b.points).unwrap();
+    write_kitti_bin(&seq.join("000000.bin"), &a.to_points()).unwrap();
+    write_kitti_bin(&seq.join("000001.bin"), &b.to_points()).unwrap();
     let file = |f: &str| CloudRef::File(seq.join(f));
     let pair = |id: &str, s: &str, t: &str, gt: Rigid| BenchPair {
         id: id.into(),

@@ -131,7 +131,7 @@ fn a_correct_hypothesis_15_degrees_off_ends_correct() {
         let source = read_cloud(&pair.source, None).unwrap().cloud;
         let target = read_cloud(&pair.target, None).unwrap().cloud;
         let icp = RefineConfig::default();
-        let spacing = point_spacing(&target.points);
+        let spacing = point_spacing(&target);
         let verifier = verify::Verifier::new(&source, &target, pair.voxel, spacing, &vcfg);
         let cell = vcfg.cell_voxels * pair.voxel;
         let thinned =
@@ -236,8 +236,7 @@ fn georeferenced_coordinates_change_nothing() {
     let o = Vector3::new(5e5, 4e6, 100.0);
     let shift = |c: &Cloud| {
         Cloud::new(
-            c.points
-                .iter()
+            c.iter()
                 .map(|p| [p[0] + o.x, p[1] + o.y, p[2] + o.z])
                 .collect(),
         )

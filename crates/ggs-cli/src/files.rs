@@ -2,7 +2,7 @@
 
 use anyhow::{bail, Context, Result};
 use clap::Args;
-use ggs::io::{self, e57::E57Options, Format, LoadedCloud, ReadOptions};
+use ggs::io::{self, e57::E57Options, Format, LoadedCloud, LoadedPoints, ReadOptions};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -55,17 +55,29 @@ impl InputArgs {
     }
 }
 
-/// Read a cloud, warning (unless `quiet`) about dropped non-finite points.
+/// Read a cloud (`f32` offsets, see `ggs::Cloud`), warning (unless `quiet`) about dropped
+/// non-finite points.
 pub fn load(path: &Path, opts: &ReadOptions, quiet: bool) -> Result<LoadedCloud> {
     let loaded = io::read_cloud_with(path, opts)?;
-    if loaded.dropped_non_finite > 0 && !quiet {
+    warn_dropped(path, loaded.dropped_non_finite, quiet);
+    Ok(loaded)
+}
+
+/// Read a file's points as `f64`, exactly as written; warns as [`load`] does.
+pub fn load_points(path: &Path, opts: &ReadOptions, quiet: bool) -> Result<LoadedPoints> {
+    let loaded = io::read_points_with(path, opts)?;
+    warn_dropped(path, loaded.dropped_non_finite, quiet);
+    Ok(loaded)
+}
+
+fn warn_dropped(path: &Path, dropped: usize, quiet: bool) {
+    if dropped > 0 && !quiet {
         tracing::warn!(
             "{}: dropped {} point(s) with NaN, infinite or invalid coordinates",
             path.display(),
-            loaded.dropped_non_finite
+            dropped
         );
     }
-    Ok(loaded)
 }
 
 #[derive(Args)]
@@ -86,9 +98,9 @@ pub fn run_info(args: InfoArgs) -> Result<()> {
     let mut all = Vec::new();
     for f in &args.files {
         let t0 = Instant::now();
-        let l = load(f, &opts, true)?;
+        let l = load_points(f, &opts, true)?;
         let secs = t0.elapsed().as_secs_f64();
-        let b = l.cloud.aabb().context("empty cloud")?;
+        let b = ggs::cloud::bounds(&l.points).context("empty cloud")?;
         let mb_s = l.file_bytes as f64 / 1e6 / secs.max(1e-9);
         let scans = if l.format == Format::E57 {
             let file = std::fs::File::open(f).with_context(|| f.display().to_string())?;
@@ -101,7 +113,7 @@ pub fn run_info(args: InfoArgs) -> Result<()> {
                 "file": f,
                 "format": format!("{:?}", l.format).to_lowercase(),
                 "bytes": l.file_bytes,
-                "points": l.cloud.len(),
+                "points": l.points.len(),
                 "dropped_non_finite": l.dropped_non_finite,
                 "min": b.min,
                 "max": b.max,
@@ -120,7 +132,7 @@ pub fn run_info(args: InfoArgs) -> Result<()> {
         outln!("  size      {:.3} MB", l.file_bytes as f64 / 1e6);
         outln!(
             "  points    {}{}",
-            l.cloud.len(),
+            l.points.len(),
             if l.dropped_non_finite > 0 {
                 format!(" ({} non-finite or invalid dropped)", l.dropped_non_finite)
             } else {
@@ -175,7 +187,7 @@ pub struct ConvertArgs {
 /// `ggs convert`: read any format, write any writable one (atomically).
 pub fn run_convert(args: ConvertArgs) -> Result<()> {
     let opts = args.input_args.options()?;
-    let l = load(&args.input, &opts, args.quiet)?;
+    let l = load_points(&args.input, &opts, args.quiet)?;
     let to =
         match &args.to {
             Some(f) => Some(Format::from_name(f).with_context(|| {
@@ -190,17 +202,17 @@ pub fn run_convert(args: ConvertArgs) -> Result<()> {
     if is_ply {
         io::ply::write_ply(
             &args.output,
-            &l.cloud.points,
+            &l.points,
             None,
             io::ply::PlyWriteOptions { ascii: args.ascii },
         )?;
     } else {
-        io::write_cloud(&args.output, &l.cloud.points, to)?;
+        io::write_cloud(&args.output, &l.points, to)?;
     }
     if !args.quiet {
         eprintln!(
             "{} points: {} -> {}",
-            l.cloud.len(),
+            l.points.len(),
             args.input.display(),
             args.output.display()
         );

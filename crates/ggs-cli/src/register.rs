@@ -92,7 +92,8 @@ fn write_outputs(io_args: &IoArgs, source: &Cloud, t: &Rigid) -> Result<()> {
         io::write_atomic(path, t.to_text().as_bytes())?;
     }
     if let Some(path) = &io_args.aligned {
-        io::write_cloud(path, &source.transformed(t).points, None)?;
+        let moved: Vec<_> = source.iter().map(|p| t.apply(&p)).collect();
+        io::write_cloud(path, &moved, None)?;
     }
     Ok(())
 }

@@ -48,7 +48,7 @@ fn converted(d: &Path) -> Vec<(String, PathBuf, PathBuf)> {
 }
 
 fn points(p: &Path) -> Vec<ggs::Point> {
-    ggs::io::read_cloud(p, None).unwrap().cloud.points
+    ggs::io::read_exact_points(p, None).unwrap().points
 }
 
 #[test]

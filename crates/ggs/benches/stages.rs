@@ -54,12 +54,7 @@ fn prepare(rc: &RotatableCloud, target: &Cloud, set: &RotationSet) -> Prepared {
         dims.push(d);
     }
     let min = target.aabb().unwrap().min;
-    let shifted: Vec<[f64; 3]> = target
-        .points
-        .iter()
-        .map(|p| [p[0] - min[0], p[1] - min[1], p[2] - min[2]])
-        .collect();
-    let kernel = Occupancy::from_points(&shifted, [0.0; 3], VOXEL).unwrap();
+    let kernel = Occupancy::from_points(target, min, VOXEL).unwrap();
     let geo = Geometry::new(kernel.dims, ns_max);
     Prepared {
         rows,

@@ -23,7 +23,7 @@ fn min_of_5(mut f: impl FnMut()) -> f64 {
 fn main() {
     let path = std::env::args().nth(1).expect("usage: knn_probe CLOUD");
     let c = ggs::io::read_cloud(path.as_ref(), None).unwrap().cloud;
-    let pts = &c.points;
+    let pts = &c.to_points();
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(1)
         .build()

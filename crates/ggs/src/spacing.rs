@@ -11,7 +11,7 @@
 //! is the longest side / √n (a surface's spacing); once `h` exceeds the cloud's diagonal every
 //! point is a candidate, so the rounds end.
 
-use crate::cloud::{bounds, Point};
+use crate::cloud::{Point, PointAccess};
 use rayon::prelude::*;
 use std::collections::HashMap;
 
@@ -23,14 +23,12 @@ const CHUNK: usize = 1 << 16;
 
 /// Median nearest-other-point distance (see the module documentation); 0 when undefined (a
 /// single point, or at least half the sample on duplicated points).
-pub fn point_spacing(points: &[Point]) -> f64 {
-    let n = points.len();
-    let Some(b) = bounds(points) else {
-        return 0.0;
-    };
+pub fn point_spacing<P: PointAccess + ?Sized>(points: &P) -> f64 {
+    let n = points.count();
     if n < 2 {
         return 0.0;
     }
+    let b = crate::cloud::bounds_by(n, |i| points.at(i)).expect("n ≥ 2");
     let e = b.extent();
     let longest = e[0].max(e[1]).max(e[2]);
     let diagonal = (e[0] * e[0] + e[1] * e[1] + e[2] * e[2]).sqrt();
@@ -78,10 +76,15 @@ fn cell(p: &Point, h: f64) -> [i64; 3] {
 
 /// For each `pending` sample point, the smallest squared distance to another point of the
 /// cloud in the 27 cells of edge `h` around its own (infinity when none).
-fn nearest_within_cells(points: &[Point], sample: &[usize], pending: &[usize], h: f64) -> Vec<f64> {
+fn nearest_within_cells<P: PointAccess + ?Sized>(
+    points: &P,
+    sample: &[usize],
+    pending: &[usize],
+    h: f64,
+) -> Vec<f64> {
     let mut around: HashMap<[i64; 3], Vec<u32>> = HashMap::new();
     for (slot, &s) in pending.iter().enumerate() {
-        let c = cell(&points[sample[s]], h);
+        let c = cell(&points.at(sample[s]), h);
         for dx in -1..=1 {
             for dy in -1..=1 {
                 for dz in -1..=1 {
@@ -91,21 +94,22 @@ fn nearest_within_cells(points: &[Point], sample: &[usize], pending: &[usize], h
             }
         }
     }
-    let parts: Vec<Vec<f64>> = points
-        .par_chunks(CHUNK)
-        .enumerate()
-        .map(|(ci, chunk)| {
+    let n = points.count();
+    let parts: Vec<Vec<f64>> = (0..n.div_ceil(CHUNK))
+        .into_par_iter()
+        .map(|ci| {
             let mut best = vec![f64::INFINITY; pending.len()];
-            for (k, p) in chunk.iter().enumerate() {
-                let Some(slots) = around.get(&cell(p, h)) else {
+            for j in ci * CHUNK..n.min((ci + 1) * CHUNK) {
+                let p = points.at(j);
+                let Some(slots) = around.get(&cell(&p, h)) else {
                     continue;
                 };
                 for &slot in slots {
                     let i = sample[pending[slot as usize]];
-                    if i == ci * CHUNK + k {
+                    if i == j {
                         continue;
                     }
-                    let q = &points[i];
+                    let q = points.at(i);
                     let d = [p[0] - q[0], p[1] - q[1], p[2] - q[2]];
                     let d2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
                     let b = &mut best[slot as usize];
@@ -153,7 +157,7 @@ mod tests {
 
     #[test]
     fn degenerate_clouds_have_no_spacing() {
-        assert_eq!(point_spacing(&[]), 0.0);
+        assert_eq!(point_spacing(&Vec::<Point>::new()), 0.0);
         assert_eq!(point_spacing(&[[1.0, 2.0, 3.0]]), 0.0);
         assert_eq!(point_spacing(&vec![[1.0, 2.0, 3.0]; 10]), 0.0);
         assert_eq!(point_spacing(&[[0.0; 3], [3.0, 4.0, 0.0]]), 5.0);

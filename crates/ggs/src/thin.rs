@@ -3,19 +3,21 @@
 //! Used by the coarse search (representatives of dense sources, the coarse level's source)
 //! and by the refinement (ICP on thinned clouds), so it sits at the cloud layer, below both.
 
+use crate::cloud::{Point, PointAccess};
 use rayon::prelude::*;
 
 /// One point per occupied cell of edge `cell` (cells anchored at the points' minimum): the
 /// mean of the points in it, in increasing cell order (x-major), each mean summed in input
 /// order. Deterministic and independent of the thread count: the points are sorted by (cell,
 /// index), a total order with no ties.
-pub fn cell_centroids(points: &[[f64; 3]], cell: f64) -> Vec<[f64; 3]> {
-    if points.is_empty() {
+pub fn cell_centroids<P: PointAccess + ?Sized>(points: &P, cell: f64) -> Vec<Point> {
+    let n = points.count();
+    if n == 0 {
         return Vec::new();
     }
     let mut min = [f64::INFINITY; 3];
     let mut max = [f64::NEG_INFINITY; 3];
-    for p in points {
+    for p in (0..n).map(|i| points.at(i)) {
         for d in 0..3 {
             min[d] = min[d].min(p[d]);
             max[d] = max[d].max(p[d]);
@@ -24,34 +26,44 @@ pub fn cell_centroids(points: &[[f64; 3]], cell: f64) -> Vec<[f64; 3]> {
     let key = |p: &[f64; 3]| -> [u64; 3] {
         std::array::from_fn(|d| ((p[d] - min[d]) / cell).floor().max(0.0) as u64)
     };
-    // Cells per axis fit 21 bits almost always: one u64 key (x, y, z packed, the same order
-    // as the triple) and a u32 index sort fast and small; otherwise the triple.
+    // Usually the cell triple and the index fit one u64 together (x, y, z, index from the top
+    // bits down: the same order as (triple, index)), 8 bytes a point; else a u64 key for
+    // cells under 2^21 per axis and a u32 index; else the triple.
     let top = key(&max);
-    if top.iter().all(|&k| k < 1 << 21) && points.len() <= u32::MAX as usize {
-        let mut keyed: Vec<(u64, u32)> = points
-            .par_iter()
-            .enumerate()
-            .map(|(i, p)| {
-                let k = key(p);
+    let bits = |v: u64| 64 - v.leading_zeros();
+    let [bx, by, bz] = top.map(bits);
+    let bi = bits(n as u64 - 1);
+    if bx + by + bz + bi <= 64 {
+        let mut keyed: Vec<u64> = (0..n)
+            .into_par_iter()
+            .map(|i| {
+                let k = key(&points.at(i));
+                (((k[0] << by | k[1]) << bz | k[2]) << bi) | i as u64
+            })
+            .collect();
+        keyed.par_sort_unstable();
+        let low = (1u64 << bi) - 1;
+        means_of_runs(points, &keyed, |&e| (e >> bi, (e & low) as usize))
+    } else if top.iter().all(|&k| k < 1 << 21) && n <= u32::MAX as usize {
+        let mut keyed: Vec<(u64, u32)> = (0..n)
+            .into_par_iter()
+            .map(|i| {
+                let k = key(&points.at(i));
                 ((k[0] << 42) | (k[1] << 21) | k[2], i as u32)
             })
             .collect();
         keyed.par_sort_unstable();
         means_of_runs(points, &keyed, |e| (e.0, e.1 as usize))
     } else {
-        let mut keyed: Vec<([u64; 3], usize)> = points
-            .iter()
-            .enumerate()
-            .map(|(i, p)| (key(p), i))
-            .collect();
+        let mut keyed: Vec<([u64; 3], usize)> = (0..n).map(|i| (key(&points.at(i)), i)).collect();
         keyed.par_sort_unstable();
         means_of_runs(points, &keyed, |e| (e.0, e.1))
     }
 }
 
 /// The mean of the points of every run of equal keys in `keyed` (sorted by key, then index).
-fn means_of_runs<E, K: PartialEq>(
-    points: &[[f64; 3]],
+fn means_of_runs<P: PointAccess + ?Sized, E, K: PartialEq>(
+    points: &P,
     keyed: &[E],
     parts: impl Fn(&E) -> (K, usize),
 ) -> Vec<[f64; 3]> {
@@ -66,7 +78,7 @@ fn means_of_runs<E, K: PartialEq>(
         let n = (end - start) as f64;
         let mut sum = [0.0; 3];
         for e in &keyed[start..end] {
-            let p = &points[parts(e).1];
+            let p = points.at(parts(e).1);
             for d in 0..3 {
                 sum[d] += p[d];
             }
@@ -110,8 +122,9 @@ mod tests {
         let pts: Vec<[f64; 3]> = (0..50_000)
             .map(|_| [r() * 3.0 - 1.0, r() * 0.5, 100.0 + r() * 2.0])
             .collect();
-        // Packed keys (cells per axis < 2^21), and the wide path (3e7 cells along x).
-        for cell in [0.05, 0.013, 1e-7] {
+        // Cell and index in one u64 (0.05, 0.013), a u64 key and a u32 index (1e-5: 69
+        // bits in all), and the wide path (3e7 cells along x).
+        for cell in [0.05, 0.013, 1e-5, 1e-7] {
             let (a, b) = (cell_centroids(&pts, cell), centroids_by_map(&pts, cell));
             assert_eq!(a.len(), b.len(), "{cell}");
             for (p, q) in a.iter().zip(&b) {

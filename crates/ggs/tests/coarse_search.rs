@@ -15,6 +15,9 @@ use nalgebra::Vector3;
 use proptest::prelude::*;
 use std::sync::OnceLock;
 
+/// Relative rounding of a cloud's stored coordinates: 2⁻²⁴ of its diagonal (see `Cloud`).
+const STORAGE: f64 = 1.0 / (1u64 << 24) as f64;
+
 fn limited15() -> &'static RotationSet {
     static SET: OnceLock<RotationSet> = OnceLock::new();
     SET.get_or_init(|| RotationSet::named("limited15").unwrap())
@@ -89,8 +92,10 @@ fn check_recovery_in(
         "seed {seed}: rotation {k} recovered as {}",
         r.winner().rotation_index
     );
+    // The clouds hold f32 offsets (see `Cloud`): a coordinate is off by at most
+    // 2⁻²⁴ × the diagonal, and the translation (from the means) to about that.
     let e = rte(&r.transform(), &truth);
-    assert!(e < 1e-9 * extent, "seed {seed} k {k}: RTE {e:e}");
+    assert!(e < 4.0 * STORAGE * extent, "seed {seed} k {k}: RTE {e:e}");
     // Perfect overlap: every source cell on a kernel cell, m = 5·n11.
     assert_eq!(r.winner().match_score, 5 * r.stats.target_occupied as i64);
     assert!(r.stats.max_rounding_error < 1e-6);
@@ -349,7 +354,7 @@ fn partial_pair(seed: u64) -> (Cloud, Cloud) {
     let t = Rigid::new(*rot.matrix(), Vector3::new(0.3, -0.2, 0.1));
     let mut pts: Vec<[f64; 3]> = source
         .transformed(&t)
-        .points
+        .to_points()
         .into_iter()
         .enumerate()
         .filter(|(i, _)| i % 5 != 0)
@@ -451,7 +456,9 @@ fn coarse_to_fine_recovers_grid_rotations() {
         )
         .unwrap();
         assert!(rre(&r.transform(), &truth) < 1e-6, "seed {seed} k {k}");
-        assert!(rte(&r.transform(), &truth) < 1e-9, "seed {seed} k {k}");
+        let extent = source.aabb().unwrap().diagonal();
+        let e = rte(&r.transform(), &truth);
+        assert!(e < 4.0 * STORAGE * extent, "seed {seed} k {k}: {e:e}");
     }
 }
 

@@ -18,7 +18,7 @@ pub mod row;
 pub mod run_dir;
 pub mod shard;
 
-use ggs::cloud::Cloud;
+use ggs::cloud::{Cloud, Point};
 use ggs::error::{GgsError, Result};
 use ggs::metrics::{is_success, rre, rte};
 use ggs::pipeline::{register, Registration, RegistrationConfig, VoxelSize};
@@ -65,11 +65,10 @@ impl CloudRef {
             } => {
                 let all = ggs::io::read_cloud(cloud, None)?.cloud;
                 let idx = read_indices(indices, all.len())?;
-                let pts = Cloud::new(idx.iter().map(|&i| all.points[i]).collect());
-                Ok(match transform {
-                    Some(t) => pts.transformed(t),
-                    None => pts,
-                })
+                let moved = |p: Point| transform.as_ref().map_or(p, |t| t.apply(&p));
+                Ok(Cloud::new(
+                    idx.iter().map(|&i| moved(all.point(i))).collect(),
+                ))
             }
         }
     }
@@ -287,8 +286,8 @@ fn run_pair_pictured(
         if picture && !row.success {
             let t = &reg.transform;
             image = Some(html::failure_picture(
-                &source.points,
-                &target.points,
+                &source.to_points(),
+                &target.to_points(),
                 t,
                 &truth,
             ));

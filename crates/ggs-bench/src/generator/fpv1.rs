@@ -214,7 +214,7 @@ fn scan_views(
             }
         }
     }
-    let points = ggs::io::read_cloud(path, None)?.cloud.points;
+    let points = ggs::io::read_exact_points(path, None)?.points;
     let input = ScanInput {
         name: scan.to_string(),
         ..ScanInput::new(path)

@@ -200,7 +200,7 @@ pub fn load_scan(input: &ScanInput, cfg: &GeneratorConfig) -> Result<(Vec<Point>
                     .into_iter()
                     .filter(|p| p.iter().all(|c| c.is_finite()))
                     .collect(),
-                None => io::read_cloud(path, None)?.cloud.points,
+                None => io::read_exact_points(path, None)?.points,
             };
             if points.is_empty() {
                 return Err(GgsError::EmptyCloud {

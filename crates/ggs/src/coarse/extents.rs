@@ -73,10 +73,5 @@ pub fn geometry_for(nr: [usize; 3], boxes: &[Option<RotatedBox>]) -> Geometry {
 
 /// Occupancy of `target` shifted by `-min`, at voxel `s`.
 pub fn target_kernel(target: &Cloud, min: Point, s: f64) -> Result<Occupancy> {
-    let shifted: Vec<Point> = target
-        .points
-        .iter()
-        .map(|p| [p[0] - min[0], p[1] - min[1], p[2] - min[2]])
-        .collect();
-    Occupancy::from_points(&shifted, [0.0; 3], s)
+    Occupancy::from_points(target, min, s)
 }

@@ -46,7 +46,6 @@ impl RotatableCloud {
     pub fn new(cloud: &Cloud) -> Self {
         let c = cloud.centroid().expect("non-empty cloud");
         let centred: Vec<Point> = cloud
-            .points
             .iter()
             .map(|p| [p[0] - c[0], p[1] - c[1], p[2] - c[2]])
             .collect();

@@ -21,7 +21,7 @@ pub const MIN_POINTS_PER_REPRESENTATIVE: usize = 4;
 /// face of an occupied voxel (a representative in the next voxel over, or none in a voxel
 /// the points only touched). Measured: the same picks on every real pair (docs/performance.md).
 pub fn representatives(source: &Cloud, s: f64) -> Option<Cloud> {
-    let reps = cell_centroids(&source.points, s / REPRESENTATIVE_DIVISIONS);
+    let reps = cell_centroids(source, s / REPRESENTATIVE_DIVISIONS);
     (reps.len() * MIN_POINTS_PER_REPRESENTATIVE <= source.len()).then(|| Cloud::new(reps))
 }
 
@@ -49,8 +49,8 @@ pub(super) mod tests {
         let reps = representatives(&dense, s).expect("25 points per cell");
         assert!(reps.len() * MIN_POINTS_PER_REPRESENTATIVE <= dense.len());
         let c = s / REPRESENTATIVE_DIVISIONS;
-        let index = PointIndex::new(&reps.points);
-        for p in &dense.points {
+        let index = PointIndex::new(&reps.to_points());
+        for p in &dense.to_points() {
             assert!(index.nearest(p).1.sqrt() <= c * 3f64.sqrt(), "{p:?}");
         }
         assert!(representatives(&plane(40, 0.2), s).is_none());

@@ -4,6 +4,7 @@
 //! (in the clouds' units): grid dims `N_d = floor(max_d / s) + 1` and the cell of a point is
 //! `floor(p_d / s)`. Occupancy only: how many points fall in a cell does not matter.
 
+use crate::cloud::PointAccess;
 use crate::error::{GgsError, Result};
 
 /// Number of cells along one axis for a shifted extent `extent ≥ 0`: `floor(extent/s) + 1`.
@@ -63,9 +64,14 @@ pub struct Occupancy {
 
 impl Occupancy {
     /// Voxelize `points` after subtracting `min` (which must be their per-axis minimum).
-    pub fn from_points(points: &[[f64; 3]], min: [f64; 3], voxel: f64) -> Result<Occupancy> {
+    pub fn from_points<P: PointAccess + ?Sized>(
+        points: &P,
+        min: [f64; 3],
+        voxel: f64,
+    ) -> Result<Occupancy> {
+        let all = || (0..points.count()).map(|i| points.at(i));
         let mut max = [f64::NEG_INFINITY; 3];
-        for p in points {
+        for p in all() {
             for d in 0..3 {
                 max[d] = max[d].max(p[d] - min[d]);
             }
@@ -76,7 +82,7 @@ impl Occupancy {
             .and_then(|v| v.checked_mul(dims[2]))
             .ok_or_else(|| GgsError::param("voxel", "grid too large"))?;
         let mut cells = vec![false; n];
-        for p in points {
+        for p in all() {
             let i = cell(p[0] - min[0], voxel);
             let j = cell(p[1] - min[1], voxel);
             let k = cell(p[2] - min[2], voxel);

@@ -2,7 +2,7 @@
 //! bytes per point, no header.
 
 use super::stream;
-use crate::cloud::Point;
+use crate::cloud::{Point, PointStore};
 use crate::error::{GgsError, Result};
 use std::io::Read;
 use std::path::Path;
@@ -18,6 +18,15 @@ pub fn parse_kitti_bin(path: &Path, bytes: &[u8]) -> Result<Vec<Point>> {
 /// Read a KITTI `.bin` scan of `len` bytes from a stream, [`stream::CHUNK_BYTES`] at a
 /// time (reflectance dropped).
 pub fn read_kitti_bin<R: Read + Send>(path: &Path, r: &mut R, len: u64) -> Result<Vec<Point>> {
+    read_kitti_into::<Vec<Point>, R>(path, r, len)
+}
+
+/// [`read_kitti_bin`] into any [`PointStore`].
+pub fn read_kitti_into<S: PointStore, R: Read + Send>(
+    path: &Path,
+    r: &mut R,
+    len: u64,
+) -> Result<S::Out> {
     let rec = RECORD as u64;
     if !len.is_multiple_of(rec) {
         return Err(GgsError::at_byte(
@@ -30,7 +39,7 @@ pub fn read_kitti_bin<R: Read + Send>(path: &Path, r: &mut R, len: u64) -> Resul
         ));
     }
     let f = |b: &[u8]| f32::from_le_bytes([b[0], b[1], b[2], b[3]]) as f64;
-    stream::read_records(
+    stream::read_records::<S, R>(
         path,
         r,
         0,

@@ -2,7 +2,7 @@
 //! `laz` feature). Coordinates come back with each file's scale and offset applied, in f64.
 
 use super::stream;
-use crate::cloud::Point;
+use crate::cloud::{Point, PointStore};
 use crate::error::{GgsError, Result};
 use std::io::{Read, Seek, SeekFrom};
 use std::path::Path;
@@ -13,14 +13,19 @@ const BATCH: u64 = 1 << 16;
 /// Read every point of a LAS or LAZ file (the format is in the header, not the extension)
 /// from a stream positioned at its first byte. Points are decoded `BATCH` at a time, so
 /// the memory beside the output is one batch of `las::Point`s.
-pub fn read_las<R: Read + Seek + Send + Sync + 'static>(
+pub fn read_las<R: Read + Seek + Send + Sync + 'static>(path: &Path, r: R) -> Result<Vec<Point>> {
+    read_las_into::<Vec<Point>, R>(path, r)
+}
+
+/// [`read_las`] into any [`PointStore`].
+pub fn read_las_into<S: PointStore, R: Read + Seek + Send + Sync + 'static>(
     path: &Path,
     mut r: R,
-) -> Result<Vec<Point>> {
+) -> Result<S::Out> {
     check_header(path, &mut r)?;
     check_laz_chunk_table(path, &mut r)?;
     let file_len = stream_len(&mut r).map_err(|e| GgsError::io(path, e))?;
-    if let Some(points) = read_uncompressed(path, &mut r, file_len)? {
+    if let Some(points) = read_uncompressed::<S, R>(path, &mut r, file_len)? {
         return Ok(points);
     }
     // The `laz` crate (0.12) panics on some corrupt LAZ data (found by fuzzing: an index
@@ -29,7 +34,7 @@ pub fn read_las<R: Read + Seek + Send + Sync + 'static>(
     let decoded = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
         read_with_crate(path, r, file_len)
     }));
-    decoded.unwrap_or_else(|panic| {
+    let points = decoded.unwrap_or_else(|panic| {
         let why = panic
             .downcast_ref::<&str>()
             .map(|s| s.to_string())
@@ -39,7 +44,8 @@ pub fn read_las<R: Read + Seek + Send + Sync + 'static>(
             path,
             format!("corrupt LAS/LAZ data: the las/laz decoder gave up ({why})"),
         ))
-    })
+    })?;
+    Ok(S::from_vec(points))
 }
 
 /// Every point through the `las` crate, [`BATCH`] at a time.
@@ -89,11 +95,11 @@ fn read_with_crate<R: Read + Seek + Send + Sync + 'static>(
 /// 32-bit integers that open every point format) turned into `scale · X + offset` exactly as
 /// `las::Transform::direct` does. `None` for LAZ, or a header the crate refuses (the caller
 /// then reads through the crate, which reports the error). The stream is rewound first.
-fn read_uncompressed<R: Read + Seek + Send>(
+fn read_uncompressed<S: PointStore, R: Read + Seek + Send>(
     path: &Path,
     r: &mut R,
     file_len: u64,
-) -> Result<Option<Vec<Point>>> {
+) -> Result<Option<S::Out>> {
     let io = |e| GgsError::io(path, e);
     let Ok(raw) = las::raw::Header::read_from(&mut *r) else {
         r.seek(SeekFrom::Start(0)).map_err(io)?;
@@ -124,7 +130,7 @@ fn read_uncompressed<R: Read + Seek + Send>(
     };
     let room = file_len.saturating_sub(start) / stride as u64;
     let what = "the LAS header's point count";
-    stream::read_records(
+    stream::read_records::<S, R>(
         path,
         r,
         start,
@@ -439,7 +445,7 @@ mod raw_path {
         write_las(&p, &pts).unwrap();
         let bytes = std::fs::read(&p).unwrap();
         let mut cursor = std::io::Cursor::new(bytes.clone());
-        let ours = read_uncompressed(&p, &mut cursor, bytes.len() as u64)
+        let ours = read_uncompressed::<Vec<Point>, _>(&p, &mut cursor, bytes.len() as u64)
             .unwrap()
             .expect("uncompressed LAS takes the raw path");
         let mut reader = las::Reader::new(std::io::Cursor::new(bytes)).unwrap();

@@ -52,7 +52,7 @@ pub mod ply;
 pub mod stream;
 pub mod xyz;
 
-use crate::cloud::Cloud;
+use crate::cloud::{Cloud, CloudBuilder, Point, PointStore};
 use crate::error::{GgsError, Result};
 use std::io::{BufRead, BufReader, Read, Seek, Write};
 use std::path::Path;
@@ -180,35 +180,99 @@ pub fn read_cloud(path: &Path, format: Option<Format>) -> Result<LoadedCloud> {
     )
 }
 
+/// A file's points as `f64`, exactly as written: [`read_points_with`] with `format` forced
+/// or detected as in [`read_cloud`].
+pub fn read_exact_points(path: &Path, format: Option<Format>) -> Result<LoadedPoints> {
+    read_points_with(
+        path,
+        &ReadOptions {
+            format,
+            ..Default::default()
+        },
+    )
+}
+
 /// Bytes of the read buffer: large enough that the kernel reads ahead at disk speed.
 const READ_BUFFER: usize = 1 << 20;
 
-/// Read a point cloud with options. Binary PLY, binary PCD, KITTI, LAS/LAZ and E57 are
+/// Read a point cloud with options, as [`read_points_with`] reads it, into a [`Cloud`]
+/// (`f32` offsets, 12 bytes a point): the streamed formats store each chunk as they decode
+/// it, so no `f64` copy of the cloud is ever held.
+pub fn read_cloud_with(path: &Path, opts: &ReadOptions) -> Result<LoadedCloud> {
+    let (file_bytes, r) = open(path)?;
+    let (format, mut cloud) = read_points::<CloudBuilder, _>(path, r, file_bytes, opts)?;
+    let dropped_non_finite = cloud.drop_non_finite();
+    not_empty(path, cloud.len(), dropped_non_finite)?;
+    Ok(LoadedCloud {
+        cloud,
+        dropped_non_finite,
+        format,
+        file_bytes,
+    })
+}
+
+/// A file's points as `f64`, exactly as the file gives them (for tools that write points
+/// back out: `ggs convert`, the generator, Python's `read`).
+#[derive(Debug, Clone)]
+pub struct LoadedPoints {
+    pub points: Vec<Point>,
+    /// Points dropped because a coordinate was NaN or infinite (or, in E57, marked invalid).
+    pub dropped_non_finite: usize,
+    /// The format the file was read as.
+    pub format: Format,
+    /// Size of the file in bytes.
+    pub file_bytes: u64,
+}
+
+impl LoadedPoints {
+    /// The same points held as a [`Cloud`].
+    pub fn into_cloud(self) -> LoadedCloud {
+        LoadedCloud {
+            cloud: Cloud::new(self.points),
+            dropped_non_finite: self.dropped_non_finite,
+            format: self.format,
+            file_bytes: self.file_bytes,
+        }
+    }
+}
+
+/// Read a file's points as `f64`. Binary PLY, binary PCD, KITTI, LAS/LAZ and E57 are
 /// streamed (the memory beside the points is a few MB, whatever the file size); the other
 /// formats are read whole, then parsed. NaN or infinite points are dropped (and counted); an
 /// empty result is an error.
-pub fn read_cloud_with(path: &Path, opts: &ReadOptions) -> Result<LoadedCloud> {
+pub fn read_points_with(path: &Path, opts: &ReadOptions) -> Result<LoadedPoints> {
+    let (file_bytes, r) = open(path)?;
+    let (format, mut points) = read_points::<Vec<Point>, _>(path, r, file_bytes, opts)?;
+    let dropped_non_finite = crate::cloud::drop_non_finite(&mut points);
+    not_empty(path, points.len(), dropped_non_finite)?;
+    Ok(LoadedPoints {
+        points,
+        dropped_non_finite,
+        format,
+        file_bytes,
+    })
+}
+
+/// The file's size and a buffered reader at its start.
+fn open(path: &Path) -> Result<(u64, BufReader<std::fs::File>)> {
     let io = |e| GgsError::io(path, e);
     let file = std::fs::File::open(path).map_err(io)?;
     let file_bytes = file.metadata().map_err(io)?.len();
-    let r = BufReader::with_capacity(READ_BUFFER, file);
-    let (fmt, mut points) = read_points(path, r, file_bytes, opts)?;
-    let dropped = crate::cloud::drop_non_finite(&mut points);
-    if points.is_empty() {
-        return Err(GgsError::EmptyCloud {
-            what: path.display().to_string(),
-            detail: if dropped > 0 {
-                format!(" (all {dropped} points had NaN or infinite coordinates)")
-            } else {
-                String::new()
-            },
-        });
+    Ok((file_bytes, BufReader::with_capacity(READ_BUFFER, file)))
+}
+
+/// An error naming `path` when no point is left (`dropped` had NaN or infinite coordinates).
+fn not_empty(path: &Path, len: usize, dropped: usize) -> Result<()> {
+    if len > 0 {
+        return Ok(());
     }
-    Ok(LoadedCloud {
-        cloud: Cloud::new(points),
-        dropped_non_finite: dropped,
-        format: fmt,
-        file_bytes,
+    Err(GgsError::EmptyCloud {
+        what: path.display().to_string(),
+        detail: if dropped > 0 {
+            format!(" (all {dropped} points had NaN or infinite coordinates)")
+        } else {
+            String::new()
+        },
     })
 }
 
@@ -252,29 +316,30 @@ pub fn parse_bytes(
     opts: &ReadOptions,
 ) -> Result<Vec<crate::cloud::Point>> {
     let r = std::io::Cursor::new(bytes.to_vec());
-    Ok(read_points(path, r, bytes.len() as u64, opts)?.1)
+    Ok(read_points::<Vec<Point>, _>(path, r, bytes.len() as u64, opts)?.1)
 }
 
 /// The one dispatch behind [`read_cloud_with`] and [`parse_bytes`]: detect (or take) the
 /// format, then stream or read whole as the format allows. `len`: the source's size.
-fn read_points<R: BufRead + Seek + Send + Sync + 'static>(
+fn read_points<S: PointStore, R: BufRead + Seek + Send + Sync + 'static>(
     path: &Path,
     mut r: R,
     len: u64,
     opts: &ReadOptions,
-) -> Result<(Format, Vec<crate::cloud::Point>)> {
+) -> Result<(Format, S::Out)> {
     let fmt = match opts.format {
         Some(f) => f,
         None => detect(path, &mut r)?,
     };
+    // The streamed formats fill the store as they decode; the others give a list.
     let points = match fmt {
         Format::Ply if opts.mesh_samples.is_some() => {
             sampled(path, opts, ply::parse_ply_mesh(path, &read_all(path, r)?)?)?
         }
-        Format::Ply => ply::read_ply(path, &mut r, Some(len))?,
-        Format::Pcd => pcd::read_pcd(path, &mut r, Some(len))?,
-        Format::KittiBin => kitti::read_kitti_bin(path, &mut r, len)?,
-        Format::Las => las::read_las(path, r)?,
+        Format::Ply => return Ok((fmt, ply::read_ply_into::<S, R>(path, &mut r, Some(len))?)),
+        Format::Pcd => return Ok((fmt, pcd::read_pcd_into::<S, R>(path, &mut r, Some(len))?)),
+        Format::KittiBin => return Ok((fmt, kitti::read_kitti_into::<S, R>(path, &mut r, len)?)),
+        Format::Las => return Ok((fmt, las::read_las_into::<S, R>(path, r)?)),
         Format::E57 => e57::read_e57(path, r, opts.e57)?,
         Format::Npz => npz::read_npz_points(path, r, opts.npz_array.as_deref())?,
         Format::Obj => sampled(path, opts, mesh::parse_obj(path, &read_all(path, r)?)?)?,
@@ -282,7 +347,7 @@ fn read_points<R: BufRead + Seek + Send + Sync + 'static>(
         Format::Text => xyz::parse_xyz(path, &read_all(path, r)?)?,
         Format::Npy => npy::points_of(path, &npy::parse_npy(path, &read_all(path, r)?)?)?,
     };
-    Ok((fmt, points))
+    Ok((fmt, S::from_vec(points)))
 }
 
 /// Write a point cloud in the format of `format`, or of the path's extension: PLY (binary
@@ -332,11 +397,10 @@ pub fn write_overlay(
     target: &crate::cloud::Cloud,
     transform: &crate::transform::Rigid,
 ) -> Result<()> {
-    let moved = source.transformed(transform).points;
-    let mut pts = target.points.clone();
-    pts.extend_from_slice(&moved);
+    let mut pts = target.to_points();
+    pts.extend(source.iter().map(|p| transform.apply(&p)));
     let mut colors = vec![OVERLAY_TARGET_RGB; target.len()];
-    colors.extend(std::iter::repeat_n(OVERLAY_SOURCE_RGB, moved.len()));
+    colors.extend(std::iter::repeat_n(OVERLAY_SOURCE_RGB, source.len()));
     ply::write_ply(path, &pts, Some(&colors), Default::default())
 }
 
@@ -376,6 +440,25 @@ mod tests {
     use super::*;
 
     #[test]
+    fn a_streamed_cloud_is_the_cloud_of_the_exact_points() {
+        // 200k points: binary PLY of doubles takes two read chunks, the text file none.
+        let dir = std::env::temp_dir().join(format!("ggs-stream-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let mut r = crate::test_rng::uniform(3);
+        let pts: Vec<Point> = (0..200_000)
+            .map(|_| [6e5 + 50.0 * r(), 4.2e6 + 30.0 * r(), 10.0 * r()])
+            .collect();
+        for ext in ["ply", "pcd", "bin", "las", "xyz"] {
+            let p = dir.join(format!("s.{ext}"));
+            write_cloud(&p, &pts, None).unwrap();
+            let exact = read_exact_points(&p, None).unwrap().points;
+            let cloud = read_cloud(&p, None).unwrap().cloud;
+            assert_eq!(cloud, Cloud::new(exact), "{ext}");
+        }
+        std::fs::remove_dir_all(&dir).ok();
+    }
+
+    #[test]
     fn every_writable_format_round_trips() {
         let dir = std::env::temp_dir().join(format!("ggs-write-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
@@ -387,13 +470,13 @@ mod tests {
         for ext in ["ply", "pcd", "xyz", "txt", "pts", "csv", "npy", "e57"] {
             let p = dir.join(format!("c.{ext}"));
             write_cloud(&p, &pts, None).unwrap();
-            let back = read_cloud(&p, None).unwrap().cloud.points;
+            let back = read_exact_points(&p, None).unwrap().points;
             assert_eq!(back, pts, "{ext}");
         }
         // KITTI stores float32.
         let p = dir.join("c.bin");
         write_cloud(&p, &pts, None).unwrap();
-        let back = read_cloud(&p, None).unwrap().cloud.points;
+        let back = read_exact_points(&p, None).unwrap().points;
         for (a, b) in back.iter().zip(&pts) {
             for k in 0..3 {
                 assert_eq!(a[k], b[k] as f32 as f64);
@@ -403,7 +486,7 @@ mod tests {
         for ext in ["las", "laz"] {
             let p = dir.join(format!("c.{ext}"));
             write_cloud(&p, &pts, None).unwrap();
-            let back = read_cloud(&p, None).unwrap().cloud.points;
+            let back = read_exact_points(&p, None).unwrap().points;
             let b = crate::cloud::bounds(&pts).unwrap();
             for (p, q) in back.iter().zip(&pts) {
                 for k in 0..3 {
@@ -508,7 +591,7 @@ mod tests {
         )
         .unwrap();
         assert_eq!(
-            read_cloud(&p, None).unwrap().cloud.points,
+            read_exact_points(&p, None).unwrap().points,
             vec![[1.0, 2.0, 3.0]]
         );
         std::fs::remove_dir_all(&d).unwrap();

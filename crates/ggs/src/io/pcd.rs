@@ -2,7 +2,7 @@
 //! `DATA ascii`, `binary` and `binary_compressed` (LZF). Only fields `x`, `y`, `z` are read.
 
 use super::{ply, stream};
-use crate::cloud::Point;
+use crate::cloud::{Point, PointStore};
 use crate::error::{GgsError, Result};
 use std::io::BufRead;
 use std::path::Path;
@@ -42,6 +42,15 @@ pub fn read_pcd<R: BufRead + Send>(
     r: &mut R,
     file_len: Option<u64>,
 ) -> Result<Vec<Point>> {
+    read_pcd_into::<Vec<Point>, R>(path, r, file_len)
+}
+
+/// [`read_pcd`] into any [`PointStore`].
+pub fn read_pcd_into<S: PointStore, R: BufRead + Send>(
+    path: &Path,
+    r: &mut R,
+    file_len: Option<u64>,
+) -> Result<S::Out> {
     let mut header = stream::read_header(path, r, MAX_HEADER_BYTES, "DATA", |l| {
         l.split_whitespace()
             .next()
@@ -51,7 +60,7 @@ pub fn read_pcd<R: BufRead + Send>(
     if h.data_kind != "binary" {
         r.read_to_end(&mut header)
             .map_err(|e| GgsError::io(path, e))?;
-        return parse_pcd(path, &header);
+        return Ok(S::from_vec(parse_pcd(path, &header)?));
     }
     let (field_off, stride) = row_layout(&h.fields);
     let room = file_len.map_or(1 << 20, |l| {
@@ -69,13 +78,13 @@ pub fn read_pcd<R: BufRead + Send>(
     // x y z as float32 or float64 (PCD data is little endian): no per-value type dispatch.
     if fx.iter().all(|(f, _)| (f.kind, f.size) == (b'F', 4)) {
         let f = move |rec: &[u8]| at.map(|o| ply::f32_le(&rec[o..o + 4]));
-        stream::read_records(path, r, start, stride, n, what, chunk, f, room)
+        stream::read_records::<S, R>(path, r, start, stride, n, what, chunk, f, room)
     } else if fx.iter().all(|(f, _)| (f.kind, f.size) == (b'F', 8)) {
         let f = move |rec: &[u8]| at.map(|o| ply::f64_le(&rec[o..o + 8]));
-        stream::read_records(path, r, start, stride, n, what, chunk, f, room)
+        stream::read_records::<S, R>(path, r, start, stride, n, what, chunk, f, room)
     } else {
         let f = |rec: &[u8]| fx.map(|(f, o)| decode(f, &rec[o..]));
-        stream::read_records(path, r, start, stride, n, what, chunk, f, room)
+        stream::read_records::<S, R>(path, r, start, stride, n, what, chunk, f, room)
     }
 }
 

@@ -1,7 +1,7 @@
 //! Streaming helpers for large binary files: fixed-size records decoded chunk by chunk, so a
 //! 50-million-point file is read with a few MB of buffer beside the output points.
 
-use crate::cloud::Point;
+use crate::cloud::{Point, PointStore};
 use crate::error::{GgsError, Result};
 use std::io::{BufRead, Read};
 use std::path::Path;
@@ -31,14 +31,14 @@ const TASK_RECORDS: usize = 1 << 14;
 
 /// Decode `count` records of `stride` bytes each from `r`, whose next byte is byte `start` of
 /// the file, into points. A reader thread fills buffers of `chunk_bytes` (≥ `stride`, whole
-/// records) while the previous one is decoded in parallel (rayon) straight into the output,
-/// so the disk and the decoding overlap; the output is allocated zeroed for
+/// records) while the previous one is decoded in parallel (rayon) into a chunk of points,
+/// then handed to the store `S` (a plain list, or a [`crate::cloud::Cloud`] that keeps 12
+/// bytes a point), so the disk and the decoding overlap; the store reserves
 /// `min(count, reserve)` points up front (`reserve`: how many records the file's size can
-/// hold, so an overstated count costs nothing) and its pages are first touched by the
-/// decoding threads. The result does not depend on the thread count. A source that ends
-/// early is an error at the byte where it ended, naming `what`.
+/// hold, so an overstated count costs nothing). The result does not depend on the thread
+/// count. A source that ends early is an error at the byte where it ended, naming `what`.
 #[allow(clippy::too_many_arguments)]
-pub fn read_records<R: Read + Send>(
+pub fn read_records<S: PointStore, R: Read + Send>(
     path: &Path,
     r: &mut R,
     start: u64,
@@ -48,7 +48,7 @@ pub fn read_records<R: Read + Send>(
     chunk_bytes: usize,
     decode: impl Fn(&[u8]) -> Point + Sync,
     reserve: u64,
-) -> Result<Vec<Point>> {
+) -> Result<S::Out> {
     use rayon::prelude::*;
     use std::sync::mpsc;
     if stride == 0 {
@@ -57,8 +57,9 @@ pub fn read_records<R: Read + Send>(
             format!("{what}: records of 0 bytes"),
         ));
     }
-    let mut out = vec![[0.0f64; 3]; count.min(reserve) as usize];
+    let mut out = S::with_capacity(count.min(reserve) as usize);
     let per_chunk = (chunk_bytes / stride).max(1);
+    let mut points = vec![[0.0f64; 3]; (count.min(per_chunk as u64)) as usize];
     // BUFFERS buffers circulate: being filled by the reader, queued, or being decoded.
     let (full_tx, full_rx) = mpsc::sync_channel::<(Vec<u8>, std::io::Result<usize>)>(BUFFERS - 1);
     let (empty_tx, empty_rx) = mpsc::channel::<Vec<u8>>();
@@ -90,11 +91,7 @@ pub fn read_records<R: Read + Send>(
                 .expect("the reader sends until the end or an error");
             let got = got.map_err(|e| GgsError::io(path, e))?;
             let whole = got / stride;
-            let first = done as usize;
-            if out.len() < first + whole {
-                out.resize(first + whole, [0.0; 3]);
-            }
-            out[first..first + whole]
+            points[..whole]
                 .par_chunks_mut(TASK_RECORDS)
                 .zip(buf[..whole * stride].par_chunks(TASK_RECORDS * stride))
                 .for_each(|(o, b)| {
@@ -102,6 +99,7 @@ pub fn read_records<R: Read + Send>(
                         *p = decode(rec);
                     }
                 });
+            out.extend_from(&points[..whole]);
             if got < want {
                 let at = start + (done + whole as u64) * stride as u64;
                 return Err(GgsError::at_byte(
@@ -116,8 +114,7 @@ pub fn read_records<R: Read + Send>(
             let _ = empty_tx.send(buf);
             done += k as u64;
         }
-        out.truncate(count as usize);
-        Ok(out)
+        Ok(out.finish())
     })
 }
 
@@ -197,7 +194,7 @@ mod tests {
         for chunk in [1, 3, 4, 7, 100] {
             // A reserve below the count (the output grows) and above it.
             for reserve in [2, 10, 1000] {
-                let out = read_records(
+                let out = read_records::<Vec<Point>, _>(
                     Path::new("f"),
                     &mut Cursor::new(&bytes),
                     0,
@@ -219,7 +216,7 @@ mod tests {
     #[test]
     fn truncated_records_name_the_byte() {
         let bytes = vec![0u8; 10];
-        let e = read_records(
+        let e = read_records::<Vec<Point>, _>(
             Path::new("f.bin"),
             &mut Cursor::new(&bytes),
             100,

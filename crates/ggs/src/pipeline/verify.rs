@@ -158,12 +158,6 @@ pub struct Verifier {
 /// One point's full weight: weights are integers in `[0, WEIGHT_ONE]`.
 const WEIGHT_ONE: u64 = 1 << 20;
 
-/// An evenly strided sample of at most `n` points.
-fn strided(points: &[Point], n: usize) -> Vec<Point> {
-    let step = points.len().div_ceil(n).max(1);
-    points.iter().step_by(step).copied().collect()
-}
-
 impl Verifier {
     /// Index both clouds for queries at `D` (see [`VerifyConfig`]) for voxel `voxel` and the
     /// target's point spacing `spacing`.
@@ -175,13 +169,12 @@ impl Verifier {
         cfg: &VerifyConfig,
     ) -> Self {
         let distance = (cfg.distance_voxels * voxel).max(cfg.spacing_factor * spacing);
-        let index =
-            |c: &Cloud| RadiusSearch::new(&strided(&c.points, INDEX_POINTS), distance, None);
+        let index = |c: &Cloud| RadiusSearch::new(&c.strided(INDEX_POINTS), distance, None);
         Verifier {
             in_source: index(source),
             in_target: index(target),
-            source: strided(&source.points, SAMPLE_POINTS),
-            target: strided(&target.points, SAMPLE_POINTS),
+            source: source.strided(SAMPLE_POINTS),
+            target: target.strided(SAMPLE_POINTS),
             distance,
             score: cfg.score,
         }

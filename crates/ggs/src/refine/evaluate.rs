@@ -35,8 +35,9 @@ pub fn evaluate(
             format!("must be a positive number, got {max_distance}"),
         ));
     }
-    let moved: Vec<Point> = source.points.iter().map(|p| t.apply(p)).collect();
-    let in_target = RadiusSearch::new(&target.points, max_distance, None);
+    let moved: Vec<Point> = source.iter().map(|p| t.apply(&p)).collect();
+    let target = target.to_points();
+    let in_target = RadiusSearch::new(&target, max_distance, None);
     // Per-point results collected in order, then summed in order: thread-count independent.
     let found: Vec<Option<f64>> = moved
         .par_iter()
@@ -46,7 +47,6 @@ pub fn evaluate(
     let sq: f64 = found.iter().flatten().sum();
     let in_moved = RadiusSearch::new(&moved, max_distance, None);
     let matched_target = target
-        .points
         .par_iter()
         .filter(|q| in_moved.nearest(q).is_some())
         .count();

@@ -4,8 +4,10 @@
 //! for the trees and the shapes once (a shape is a pure function of the cloud and the point,
 //! so sharing it changes no result).
 //!
-//! The frame is centred on the target's centroid `c`: georeferenced clouds (UTM coordinates of
-//! 1e6 m) would otherwise lose precision in the cross products and sums. A transform `T` of
+//! The frame is centred on the target's origin `c` (the centre of its bounding box, see
+//! [`Cloud`]): georeferenced clouds (UTM coordinates of 1e6 m) would otherwise lose precision
+//! in the cross products and sums. Each point arrives as `(its cloud's origin − c) + offset`,
+//! so the clouds' shapes are kept exactly. A transform `T` of
 //! the clouds' frame is `T_local = Tr(−c)·T·Tr(c)` here, and `T = Tr(c)·T_local·Tr(−c)`.
 
 use super::covariance::{LazyShapes, LocalShape};
@@ -57,9 +59,22 @@ impl PreparedCloud {
     }
 }
 
+/// Both clouds non-empty and enough neighbours for a normal.
+fn check(source: &Cloud, target: &Cloud, neighbors: usize) -> Result<()> {
+    source.ensure_not_empty("source")?;
+    target.ensure_not_empty("target")?;
+    if neighbors < 3 {
+        return Err(GgsError::param(
+            "neighbors",
+            "need at least 3 neighbours for a normal",
+        ));
+    }
+    Ok(())
+}
+
 /// A source and a target prepared for refinement (see the module documentation).
 pub struct PreparedPair {
-    /// The frame's origin in the clouds' frame: the target's centroid.
+    /// The frame's origin in the clouds' frame: the target's origin.
     centre: Vector3<f64>,
     pub source: PreparedCloud,
     pub target: PreparedCloud,
@@ -69,32 +84,19 @@ pub struct PreparedPair {
 }
 
 impl PreparedPair {
-    /// Move both clouds into the target-centred frame; trees and shapes (of `neighbors`
-    /// points, GICP's `epsilon` along the normal) are built on first use.
+    /// Move both clouds into the target's frame; trees and shapes (of `neighbors` points,
+    /// GICP's `epsilon` along the normal) are built on first use.
     pub fn new(source: &Cloud, target: &Cloud, neighbors: usize, epsilon: f64) -> Result<Self> {
-        source.ensure_not_empty("source")?;
-        target.ensure_not_empty("target")?;
-        if neighbors < 3 {
-            return Err(GgsError::param(
-                "neighbors",
-                "need at least 3 neighbours for a normal",
-            ));
-        }
-        let c = Vector3::from(target.centroid().expect("non-empty"));
-        let shift = |cloud: &Cloud| -> Vec<Point> {
-            cloud
-                .points
-                .iter()
-                .map(|p| [p[0] - c.x, p[1] - c.y, p[2] - c.z])
-                .collect()
-        };
-        Ok(PreparedPair {
-            centre: c,
-            source: PreparedCloud::new(shift(source), neighbors, epsilon),
-            target: PreparedCloud::new(shift(target), neighbors, epsilon),
+        check(source, target, neighbors)?;
+        let frame = target.origin();
+        let pts = |c: &Cloud| c.in_frame(frame).iter().collect();
+        Ok(Self::from_points(
+            frame,
+            pts(source),
+            pts(target),
             neighbors,
             epsilon,
-        })
+        ))
     }
 
     /// Both clouds thinned to one point (the mean) per cell of edge `cell`, prepared.
@@ -105,8 +107,33 @@ impl PreparedPair {
         neighbors: usize,
         epsilon: f64,
     ) -> Result<Self> {
-        let thin = |c: &Cloud| Cloud::new(cell_centroids(&c.points, cell));
-        PreparedPair::new(&thin(source), &thin(target), neighbors, epsilon)
+        check(source, target, neighbors)?;
+        let frame = target.origin();
+        let thin = |c: &Cloud| cell_centroids(&c.in_frame(frame), cell);
+        Ok(Self::from_points(
+            frame,
+            thin(source),
+            thin(target),
+            neighbors,
+            epsilon,
+        ))
+    }
+
+    /// The pair of `source` and `target`, given in the frame at `centre`.
+    fn from_points(
+        centre: Point,
+        source: Vec<Point>,
+        target: Vec<Point>,
+        neighbors: usize,
+        epsilon: f64,
+    ) -> Self {
+        PreparedPair {
+            centre: Vector3::from(centre),
+            source: PreparedCloud::new(source, neighbors, epsilon),
+            target: PreparedCloud::new(target, neighbors, epsilon),
+            neighbors,
+            epsilon,
+        }
     }
 
     /// `T` of the clouds' frame in the pair's frame.
@@ -141,7 +168,7 @@ mod tests {
         assert!((back.rotation - t.rotation).amax() < 1e-15);
         assert!((back.translation - t.translation).amax() < 1e-6);
         // T·p in the clouds' frame, shifted by −c, equals T_local·(p − c).
-        let p = source.points[0];
+        let p = source.point(0);
         let (g, l) = (t.apply(&p), local.apply(&pair.source.points[0]));
         let c = pair.centre;
         assert!(((g[0] - c.x) - l[0]).abs() < 1e-6 && ((g[2] - c.z) - l[2]).abs() < 1e-6);

@@ -6,7 +6,7 @@ mod body;
 mod header;
 
 use super::{stream, write_atomic};
-use crate::cloud::Point;
+use crate::cloud::{Point, PointStore};
 use crate::error::{GgsError, Result};
 use body::*;
 use header::*;
@@ -26,15 +26,24 @@ pub fn read_ply<R: BufRead + Send>(
     r: &mut R,
     file_len: Option<u64>,
 ) -> Result<Vec<Point>> {
-    read_ply_chunked(path, r, file_len, stream::CHUNK_BYTES)
+    read_ply_chunked::<Vec<Point>, R>(path, r, file_len, stream::CHUNK_BYTES)
 }
 
-fn read_ply_chunked<R: BufRead + Send>(
+/// [`read_ply`] into any [`PointStore`].
+pub fn read_ply_into<S: PointStore, R: BufRead + Send>(
+    path: &Path,
+    r: &mut R,
+    file_len: Option<u64>,
+) -> Result<S::Out> {
+    read_ply_chunked::<S, R>(path, r, file_len, stream::CHUNK_BYTES)
+}
+
+fn read_ply_chunked<S: PointStore, R: BufRead + Send>(
     path: &Path,
     r: &mut R,
     file_len: Option<u64>,
     chunk_bytes: usize,
-) -> Result<Vec<Point>> {
+) -> Result<S::Out> {
     // Refuse a file that is not PLY at its first line, before looking for 'end_header'.
     let head = r.fill_buf().map_err(|e| GgsError::io(path, e))?;
     let first = head.split(|&b| b == b'\n').next().unwrap_or(&[]);
@@ -61,7 +70,7 @@ fn read_ply_chunked<R: BufRead + Send>(
     if !fixed {
         r.read_to_end(&mut header)
             .map_err(|e| GgsError::io(path, e))?;
-        return parse_ply(path, &header);
+        return Ok(S::from_vec(parse_ply(path, &header)?));
     }
     let mut pos = h.data_start as u64;
     for e in &h.elements[..vi] {
@@ -102,13 +111,13 @@ fn read_ply_chunked<R: BufRead + Send>(
     // The common layouts get a decoder without a per-value type dispatch.
     if little && offsets.iter().all(|&(_, t)| t == Scalar::F32) {
         let f = move |rec: &[u8]| at.map(|o| f32_le(&rec[o..o + 4]));
-        stream::read_records(path, r, pos, stride, n, what, chunk_bytes, f, room)
+        stream::read_records::<S, R>(path, r, pos, stride, n, what, chunk_bytes, f, room)
     } else if little && offsets.iter().all(|&(_, t)| t == Scalar::F64) {
         let f = move |rec: &[u8]| at.map(|o| f64_le(&rec[o..o + 8]));
-        stream::read_records(path, r, pos, stride, n, what, chunk_bytes, f, room)
+        stream::read_records::<S, R>(path, r, pos, stride, n, what, chunk_bytes, f, room)
     } else {
         let f = |rec: &[u8]| offsets.map(|(o, t)| t.decode(&rec[o..], little));
-        stream::read_records(path, r, pos, stride, n, what, chunk_bytes, f, room)
+        stream::read_records::<S, R>(path, r, pos, stride, n, what, chunk_bytes, f, room)
     }
 }
 
@@ -470,7 +479,12 @@ mod error_paths {
     }
 
     fn streamed(path: &Path, b: &[u8]) -> Result<Vec<Point>> {
-        read_ply_chunked(path, &mut std::io::Cursor::new(b), Some(b.len() as u64), 16)
+        read_ply_chunked::<Vec<Point>, _>(
+            path,
+            &mut std::io::Cursor::new(b),
+            Some(b.len() as u64),
+            16,
+        )
     }
 
     fn mesh(path: &Path, b: &[u8]) -> Result<crate::io::mesh::Mesh> {
