@@ -258,6 +258,7 @@ fn print_json(args: &RegisterArgs, reg: &Registration, read_ms: f64, total_ms: f
         "timings": reg.timings,
         "read_ms": read_ms,
         "total_ms": total_ms,
+        "peak_memory_bytes": ggs::memory::peak_resident(),
     });
     outln!("{}", serde_json::to_string_pretty(&out)?);
     Ok(())
@@ -290,8 +291,14 @@ fn print_summary(reg: &Registration, preset: &str, read_ms: f64, total_ms: f64) 
     print_grids(&reg.search)?;
     let t = &reg.timings;
     outln!(
-        "time        {:.0} ms total: read {:.0}, search {:.0}, verify {:.0}, refine {:.0} ms on {} thread(s)",
-        total_ms, read_ms, t.search_ms, t.verify_ms, t.refine_ms, reg.search.stats.threads
+        "time        {:.0} ms total: read {:.0}, search {:.0}, verify {:.0}, refine {:.0} ms on {} thread(s){}",
+        total_ms,
+        read_ms,
+        t.search_ms,
+        t.verify_ms,
+        t.refine_ms,
+        reg.search.stats.threads,
+        peak_memory_note()
     );
     Ok(())
 }
@@ -465,7 +472,20 @@ fn print_timings(reg: &Registration, read_ms: f64, total_ms: f64) -> Result<()> 
         );
     }
     outln!("total                           {total_ms:>10.1}");
+    if let Some(peak) = ggs::memory::peak_resident() {
+        outln!(
+            "peak resident memory            {:>10}",
+            ggs::memory::human_bytes(peak)
+        );
+    }
     Ok(())
+}
+
+/// `; peak memory 204 MiB` where the kernel tells this process's peak resident memory.
+fn peak_memory_note() -> String {
+    ggs::memory::peak_resident()
+        .map(|b| format!("; peak memory {}", ggs::memory::human_bytes(b)))
+        .unwrap_or_default()
 }
 
 pub fn run_refine(args: RefineArgs) -> Result<()> {

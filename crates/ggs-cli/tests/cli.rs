@@ -122,6 +122,11 @@ fn json_output_and_files() {
     assert_eq!(j["chosen_rank"], verified[chosen]["rank"]);
     let c = j["confidence"].as_f64().unwrap();
     assert!((0.0..=1.0).contains(&c), "{c}");
+    // The peak resident memory where the kernel tells it (Linux): at least the two clouds.
+    if std::path::Path::new("/proc/self/status").exists() {
+        let peak = j["peak_memory_bytes"].as_u64().expect("peak_memory_bytes");
+        assert!(peak > 1 << 20 && peak < 1 << 40, "{peak}");
+    }
     let rows: Vec<f64> = json_matrix(&j["transform"]);
     // The matrix file holds the same numbers, exactly.
     assert_eq!(
@@ -476,6 +481,9 @@ fn coarse_to_fine_and_timings() {
         "GFLOP/s",
     ] {
         assert!(fast.contains(needle), "{needle} missing:\n{fast}");
+    }
+    if std::path::Path::new("/proc/self/status").exists() {
+        assert!(fast.contains("peak resident memory"), "{fast}");
     }
     let json = register_pair(&[
         "--preset",

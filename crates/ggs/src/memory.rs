@@ -8,6 +8,16 @@ pub fn physical_memory() -> Option<u64> {
     Some(kib * 1024)
 }
 
+/// This process's peak resident memory so far in bytes (`VmHWM` of `/proc/self/status`: the
+/// most physical memory the process has held at once since it started); `None` where the
+/// kernel does not tell.
+pub fn peak_resident() -> Option<u64> {
+    let text = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = text.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kib * 1024)
+}
+
 /// Default budget: half of physical memory, or 4 GiB where it cannot be read.
 pub fn default_budget() -> u64 {
     physical_memory().map(|m| m / 2).unwrap_or(4 << 30)
@@ -53,6 +63,18 @@ pub fn human_bytes(b: u64) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn peak_resident_covers_what_was_touched() {
+        let Some(before) = peak_resident() else {
+            return; // no /proc here: nothing to check
+        };
+        let block = vec![1u8; 64 << 20];
+        let after = peak_resident().expect("read once already");
+        assert!(after >= before);
+        assert!(after >= 64 << 20, "64 MiB touched, peak {after}");
+        assert_eq!(block.iter().map(|&b| b as usize).sum::<usize>(), 64 << 20);
+    }
 
     #[test]
     fn sizes() {
