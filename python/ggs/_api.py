@@ -367,7 +367,8 @@ def register(
     max_hypotheses, margin: how many distinct hypotheses are verified (at most; default 32)
       and which (match score ≥ margin × the winner's; default 0.5); verify_score:
       ``"tight"`` (default: a point within the distance D counts by 1 − d²/D²) or
-      ``"fitness"`` (the share of points within D); verify=False takes the coarse winner;
+      ``"fitness"`` (the share of points within D) or ``"oriented"`` (``"tight"`` counting
+      only points whose normals face the same way); verify=False takes the coarse winner;
       polish=True moves each hypothesis on a finer rotation grid first.
     top_k: coarse hypotheses reported; distinct_radius: degrees that make two rotations
       distinct (default 2 × the set's step); max_memory: bytes, or ``"2G"``, ``"512M"``;

@@ -89,6 +89,12 @@ fn verify_score_tight_weighs_closeness_fitness_counts_the_points_within_d() {
     assert_eq!(t.len(), f.len());
     assert!(t.iter().zip(&f).all(|(t, f)| t <= f), "{t:?} {f:?}");
     assert!(t[0] < f[0], "{t:?} {f:?}");
+    // Oriented counts a subset of the tight score's points, with the same weights.
+    let oriented = small(&[&args[..], &["--verify-score", "oriented"]].concat());
+    assert_eq!(oriented["verification"]["score"], "oriented");
+    let o = scores(&oriented);
+    assert_eq!(o.len(), t.len());
+    assert!(o.iter().zip(&t).all(|(o, t)| o <= t), "{o:?} {t:?}");
     let out = ggs(&["register", "x.ply", "y.ply", "--verify-score", "close"]);
     assert!(!out.status.success());
 }

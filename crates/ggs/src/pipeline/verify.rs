@@ -13,6 +13,10 @@
 //! on the generated low-overlap human pairs the right pose was verified but lost for about
 //! one failure in six (docs/pipeline.md, "The verification score"). Weights are integers in
 //! units of 2⁻²⁰ and summed as integers, so the score does not depend on the thread count.
+//! [`VerifyScore::Oriented`] counts a point as `Tight` does only where its normal and its
+//! nearest neighbour's face the same way (`(R·n_p)·n_q ≥ 0`; normals from 10 neighbours,
+//! turned away from their cloud's centroid): not the default, since that rule orients
+//! non-convex views badly (docs/pipeline.md, "Where the remaining failures come from").
 //!
 //! The sums run over the source points `S` and the target points (each an evenly strided
 //! sample of at most [`SAMPLE_POINTS`] points of the full cloud); the nearest neighbours `q`
@@ -92,11 +96,15 @@ pub enum VerifyScore {
     /// `w(d) = 1 − d²/D²`: a point counts by how close it lies, so a small overlap that fits
     /// exactly beats a large one that fits loosely (a front/back flip of a partial view).
     Tight,
+    /// `Tight`, counted only where the two points face the same way: their normals (from
+    /// their nearest points, oriented away from their cloud's centroid) have a positive dot
+    /// product once the source's is turned by `R`.
+    Oriented,
 }
 
 impl VerifyScore {
     /// The names `--verify-score` takes.
-    pub const NAMES: [&'static str; 2] = ["tight", "fitness"];
+    pub const NAMES: [&'static str; 3] = ["tight", "fitness", "oriented"];
 }
 
 impl std::str::FromStr for VerifyScore {
@@ -106,9 +114,10 @@ impl std::str::FromStr for VerifyScore {
         match s {
             "tight" => Ok(VerifyScore::Tight),
             "fitness" => Ok(VerifyScore::Fitness),
+            "oriented" => Ok(VerifyScore::Oriented),
             other => Err(crate::GgsError::param(
                 "verify score",
-                format!("unknown '{other}' (tight or fitness)"),
+                format!("unknown '{other}' (tight, fitness or oriented)"),
             )),
         }
     }
@@ -153,6 +162,47 @@ pub struct Verifier {
     /// The distance `D`, in cloud units.
     pub distance: f64,
     score: VerifyScore,
+    /// With [`VerifyScore::Oriented`]: the normals of the source sample, the target sample,
+    /// the source index and the target index points.
+    normals: Option<[Vec<Normal>; 4]>,
+}
+
+/// A unit normal.
+type Normal = [f32; 3];
+
+/// Neighbours of a point that give its normal.
+const NORMAL_NEIGHBORS: usize = 10;
+
+/// The normal at each of `at`: the eigenvector of the smallest eigenvalue of the covariance
+/// of its [`NORMAL_NEIGHBORS`] nearest points of `cloud` (indexed by `index`), turned to point
+/// away from `centroid`; zero where the neighbourhood is degenerate.
+fn normals(
+    at: &[Point],
+    cloud: &[Point],
+    index: &crate::refine::neighbors::PointIndex,
+    centroid: &Point,
+) -> Vec<Normal> {
+    at.par_iter()
+        .map(|p| {
+            let mut acc = crate::refine::covariance::Moments::new(p);
+            index.for_k_nearest(p, NORMAL_NEIGHBORS, |j| acc.push(&cloud[j]));
+            let n = acc.shape(1e-3).normal;
+            let out = (0..3).map(|d| (p[d] - centroid[d]) * n[d]).sum::<f64>();
+            let s = if out < 0.0 { -1.0 } else { 1.0 };
+            [(s * n[0]) as f32, (s * n[1]) as f32, (s * n[2]) as f32]
+        })
+        .collect()
+}
+
+/// The centroid of `points`.
+fn centroid(points: &[Point]) -> Point {
+    let mut c = [0.0; 3];
+    for p in points {
+        for d in 0..3 {
+            c[d] += p[d];
+        }
+    }
+    c.map(|v| v / points.len().max(1) as f64)
 }
 
 /// One point's full weight: weights are integers in `[0, WEIGHT_ONE]`.
@@ -169,15 +219,41 @@ impl Verifier {
         cfg: &VerifyConfig,
     ) -> Self {
         let distance = (cfg.distance_voxels * voxel).max(cfg.spacing_factor * spacing);
-        let index = |c: &Cloud| RadiusSearch::new(&c.strided(INDEX_POINTS), distance, None);
+        let (source_index, target_index) =
+            (source.strided(INDEX_POINTS), target.strided(INDEX_POINTS));
+        let (source_sample, target_sample) =
+            (source.strided(SAMPLE_POINTS), target.strided(SAMPLE_POINTS));
+        let normals = (cfg.score == VerifyScore::Oriented).then(|| {
+            let (si, ti) = (
+                crate::refine::neighbors::PointIndex::new(&source_index),
+                crate::refine::neighbors::PointIndex::new(&target_index),
+            );
+            let (sc, tc) = (centroid(&source_index), centroid(&target_index));
+            [
+                normals(&source_sample, &source_index, &si, &sc),
+                normals(&target_sample, &target_index, &ti, &tc),
+                normals(&source_index, &source_index, &si, &sc),
+                normals(&target_index, &target_index, &ti, &tc),
+            ]
+        });
         Verifier {
-            in_source: index(source),
-            in_target: index(target),
-            source: source.strided(SAMPLE_POINTS),
-            target: target.strided(SAMPLE_POINTS),
+            in_source: RadiusSearch::new(&source_index, distance, None),
+            in_target: RadiusSearch::new(&target_index, distance, None),
+            source: source_sample,
+            target: target_sample,
             distance,
             score: cfg.score,
+            normals,
         }
+    }
+
+    /// Whether normal `a` turned by `r` and normal `b` face the same way (always true when
+    /// the score does not look at normals, or either normal is unknown).
+    #[inline]
+    fn facing(r: &nalgebra::Matrix3<f64>, a: &Normal, b: &Normal) -> bool {
+        let a = r * nalgebra::Vector3::new(a[0] as f64, a[1] as f64, a[2] as f64);
+        let dot = a.x * b[0] as f64 + a.y * b[1] as f64 + a.z * b[2] as f64;
+        dot >= 0.0
     }
 
     /// The weight of one point whose nearest neighbour within `D` is `hit` (squared distance),
@@ -187,7 +263,7 @@ impl Verifier {
         match (hit, self.score) {
             (None, _) => 0,
             (Some(_), VerifyScore::Fitness) => WEIGHT_ONE,
-            (Some((_, d2)), VerifyScore::Tight) => {
+            (Some((_, d2)), VerifyScore::Tight | VerifyScore::Oriented) => {
                 let r2 = self.distance * self.distance;
                 (WEIGHT_ONE as f64 * (1.0 - d2 / r2).max(0.0)).floor() as u64
             }
@@ -197,15 +273,28 @@ impl Verifier {
     /// The evidence for `T` (`p_target = T · p_source`).
     pub fn evidence(&self, t: &Rigid) -> Evidence {
         let inv = t.inverse();
+        let facing = |i: usize, hit: Option<(usize, f64)>, side: usize| -> Option<(usize, f64)> {
+            let (Some(n), Some((j, _))) = (&self.normals, hit) else {
+                return hit;
+            };
+            let (r, a, b) = if side == 0 {
+                (&t.rotation, &n[0][i], &n[3][j])
+            } else {
+                (&inv.rotation, &n[1][i], &n[2][j])
+            };
+            Self::facing(r, a, b).then_some(hit).flatten()
+        };
         let matched_source: u64 = self
             .source
             .par_iter()
-            .map(|p| self.weight(self.in_target.nearest(&t.apply(p))))
+            .enumerate()
+            .map(|(i, p)| self.weight(facing(i, self.in_target.nearest(&t.apply(p)), 0)))
             .sum();
         let matched_target: u64 = self
             .target
             .par_iter()
-            .map(|q| self.weight(self.in_source.nearest(&inv.apply(q))))
+            .enumerate()
+            .map(|(i, q)| self.weight(facing(i, self.in_source.nearest(&inv.apply(q)), 1)))
             .sum();
         let matched_source = matched_source as f64 / WEIGHT_ONE as f64;
         let matched_target = matched_target as f64 / WEIGHT_ONE as f64;
@@ -430,5 +519,67 @@ mod tests {
         let e = v.evidence(&shifted);
         // Only the last column of each cloud has no partner.
         assert!(e.fitness_source > 0.99 && e.fitness_target > 0.99, "{e:?}");
+    }
+}
+
+#[cfg(test)]
+mod oriented_tests {
+    use super::*;
+
+    /// Points of the unit sphere's cap `z ≥ 0.6` on a Fibonacci spiral: its normals, turned
+    /// away from the cap's own centroid, point outwards.
+    fn cap(n: usize) -> Vec<Point> {
+        let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+        (0..n)
+            .map(|i| {
+                let z = 1.0 - 0.4 * (i as f64 + 0.5) / n as f64;
+                let r = (1.0 - z * z).sqrt();
+                let a = golden * i as f64;
+                [r * a.cos(), r * a.sin(), z]
+            })
+            .collect()
+    }
+
+    fn evidence(source: &[Point], target: &[Point], score: VerifyScore) -> Evidence {
+        let cfg = VerifyConfig {
+            score,
+            ..VerifyConfig::default()
+        };
+        let (s, t) = (Cloud::new(source.to_vec()), Cloud::new(target.to_vec()));
+        Verifier::new(&s, &t, 0.1, 0.01, &cfg).evidence(&Rigid::identity())
+    }
+
+    #[test]
+    fn oriented_counts_points_that_face_the_same_way_only() {
+        let c = cap(4000);
+        // The same cap: every point faces the same way, the oriented score is the tight one.
+        let tight = evidence(&c, &c, VerifyScore::Tight);
+        let oriented = evidence(&c, &c, VerifyScore::Oriented);
+        assert_eq!(tight.score, 1.0);
+        assert_eq!(oriented.score, tight.score);
+        // A heavy cluster far out on the target's convex side moves its centroid there: the
+        // target's cap normals turn inwards, opposite to the source's. The tight score still
+        // counts the cap (positions coincide); the oriented one counts none of it.
+        let mut with_cluster = c.clone();
+        with_cluster.extend((0..8000).map(|i| {
+            [
+                0.001 * (i % 20) as f64,
+                0.001 * (i / 20 % 20) as f64,
+                5.0 + 0.001 * (i / 400) as f64,
+            ]
+        }));
+        let tight = evidence(&c, &with_cluster, VerifyScore::Tight);
+        let oriented = evidence(&c, &with_cluster, VerifyScore::Oriented);
+        assert!(tight.fitness_source > 0.99, "{tight:?}");
+        assert!(oriented.fitness_source < 0.01, "{oriented:?}");
+    }
+
+    #[test]
+    fn the_score_names_parse() {
+        for name in VerifyScore::NAMES {
+            let s: VerifyScore = name.parse().unwrap();
+            assert_eq!(serde_json::to_value(s).unwrap(), name);
+        }
+        assert!("normals".parse::<VerifyScore>().is_err());
     }
 }
