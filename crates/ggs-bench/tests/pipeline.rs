@@ -159,6 +159,7 @@ fn a_correct_hypothesis_15_degrees_off_ends_correct() {
                 &RefineConfig::default(),
                 &vcfg,
                 0.0,
+                &|_| None,
             )
             .unwrap();
             let end = refine(
@@ -219,6 +220,7 @@ fn the_pipeline_is_bit_identical_on_1_and_2_threads() {
     for (ha, hb) in va.hypotheses.iter().zip(&vb.hypotheses) {
         assert_eq!(ha.level, hb.level);
         assert_eq!(ha.settled, hb.settled);
+        assert_eq!(ha.same_as, hb.same_as);
         assert_eq!(ha.transform, hb.transform);
         assert_eq!(ha.evidence, hb.evidence);
         assert_eq!(ha.iterations, hb.iterations);

@@ -392,7 +392,7 @@ fn print_verification(v: &Verification) -> Result<()> {
             ""
         };
         outln!(
-            "  #{} rotation {}{} match {} → {} after polish, score {:.3} (source {:.3}, target {:.3}), {} ICP iterations{}{}{}",
+            "  #{} rotation {}{} match {} → {} after polish, score {:.3} (source {:.3}, target {:.3}), {} ICP iterations{}{}{}{}",
             h.rank + 1,
             h.rotation_index,
             match h.level {
@@ -407,6 +407,9 @@ fn print_verification(v: &Verification) -> Result<()> {
             h.iterations,
             if h.rejected_early { ", rejected early" } else { "" },
             if h.settled { ", settled on finer cells" } else { "" },
+            h.same_as
+                .map(|j| format!(", stopped on the pose of #{}", j + 1))
+                .unwrap_or_default(),
             mark
         );
     }

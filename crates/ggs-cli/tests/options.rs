@@ -163,14 +163,18 @@ fn coarse_hypotheses_adds_the_coarse_levels_own_poses_to_the_verified() {
     assert!(first_coarse >= 1);
     assert!(levels[first_coarse..].iter().all(|l| l == "coarse"));
     assert!(levels.len() - first_coarse <= 8);
-    for (rank, h) in default["verification"]["hypotheses"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .enumerate()
-    {
+    let verified = default["verification"]["hypotheses"].as_array().unwrap();
+    for (rank, h) in verified.iter().enumerate() {
         assert_eq!(h["rank"], rank);
         assert!(h["settled"].is_boolean());
+        // One stopped on an earlier pose carries that one's evidence and is never chosen.
+        if let Some(j) = h["same_as"].as_u64() {
+            assert!((j as usize) < rank);
+            assert_eq!(h["evidence"], verified[j as usize]["evidence"]);
+            assert_ne!(default["verification"]["chosen"], rank);
+        } else {
+            assert!(h["same_as"].is_null());
+        }
     }
     let none = small(&["--coarse-hypotheses", "0"]);
     assert!(none["result"]["coarse_level"]["hypotheses"]

@@ -231,6 +231,8 @@ fn verified_table(v: &Verification) -> String {
             "runner-up"
         } else if h.rejected_early {
             "rejected early"
+        } else if h.same_as.is_some() {
+            "stopped on an earlier pose"
         } else {
             ""
         };

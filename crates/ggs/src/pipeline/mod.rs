@@ -53,6 +53,12 @@ pub const AUTO_VOXEL_SPACINGS: f64 = 1.5;
 
 /// Verified poses farther apart than this many voxels in translation are distinct.
 const DISTINCT_TRANSLATION_VOXELS: f64 = 3.0;
+/// A hypothesis whose verification ICP has, at the check, brought it within this angle
+/// (degrees) and [`SAME_POSE_VOXELS`] (where the source's centroid lands) of an earlier
+/// verified pose stops there: it is on its way to the same pose.
+pub const SAME_POSE_DEG: f64 = 1.0;
+/// See [`SAME_POSE_DEG`].
+pub const SAME_POSE_VOXELS: f64 = 0.25;
 
 /// A verification score below this says the result is probably wrong.
 const LOW_EVIDENCE: f64 = 0.1;
@@ -285,6 +291,9 @@ pub struct VerifiedHypothesis {
     pub rejected_early: bool,
     /// Refined again on finer cells because another distinct pose also survived.
     pub settled: bool,
+    /// Stopped at the check on the pose of this earlier verified hypothesis (its `rank`),
+    /// whose evidence it carries (within [`SAME_POSE_DEG`] and [`SAME_POSE_VOXELS`]).
+    pub same_as: Option<usize>,
 }
 
 /// The level of the coarse search a hypothesis comes from.
@@ -591,12 +600,32 @@ fn verify_hypotheses(
         rotation_angle_deg(&a.rotation, &b.rotation) > coarse.stats.distinct_radius_deg
             || moved > DISTINCT_TRANSLATION_VOXELS * voxel
     };
+    let same_pose = |a: &Rigid, b: &Rigid| {
+        let (pa, pb) = (a.apply(&c), b.apply(&c));
+        let moved =
+            ((pa[0] - pb[0]).powi(2) + (pa[1] - pb[1]).powi(2) + (pa[2] - pb[2]).powi(2)).sqrt();
+        rotation_angle_deg(&a.rotation, &b.rotation) <= SAME_POSE_DEG
+            && moved <= SAME_POSE_VOXELS * voxel
+    };
     let mut out: Vec<VerifiedHypothesis> = Vec::new();
     let mut best = 0.0f64;
     let todo = candidates(coarse, v, |a, b| !distinct(a, b));
     for (rank, (h, level)) in todo.iter().enumerate() {
         let polished = maybe_polished(source, target, h, search, cfg)?;
-        let c = verify::check(&thinned, &verifier, &polished.transform, &icp, v, best)?;
+        let known = |t: &Rigid| {
+            out.iter()
+                .find(|o| !o.rejected_early && o.same_as.is_none() && same_pose(&o.transform, t))
+                .map(|o| (o.rank, o.evidence))
+        };
+        let c = verify::check(
+            &thinned,
+            &verifier,
+            &polished.transform,
+            &icp,
+            v,
+            best,
+            &known,
+        )?;
         best = best.max(c.evidence.score);
         out.push(VerifiedHypothesis {
             rank,
@@ -610,6 +639,7 @@ fn verify_hypotheses(
             iterations: c.iterations,
             rejected_early: c.rejected_early,
             settled: false,
+            same_as: c.same_as,
         });
     }
     let finer = || {
@@ -622,6 +652,13 @@ fn verify_hypotheses(
         )
     };
     settle_contested(&mut out, &verifier, finer, &icp, v, &distinct)?;
+    // A hypothesis stopped on an earlier one's pose carries that one's evidence, settled or not
+    // (`rank` is the position in `out`).
+    for k in 0..out.len() {
+        if let Some(j) = out[k].same_as {
+            out[k].evidence = out[j].evidence;
+        }
+    }
     let chosen = best_scoring(&out, |_| true).expect("the winner is always verified");
     let runner_up = best_scoring(&out, |k| {
         distinct(&out[k].transform, &out[chosen].transform)
@@ -666,7 +703,11 @@ fn settle_contested(
     }
     let best = out.iter().map(|h| h.evidence.score).fold(0.0, f64::max);
     let contenders: Vec<usize> = (0..out.len())
-        .filter(|&k| !out[k].rejected_early && out[k].evidence.score >= v.reject_ratio * best)
+        .filter(|&k| {
+            !out[k].rejected_early
+                && out[k].same_as.is_none()
+                && out[k].evidence.score >= v.reject_ratio * best
+        })
         .collect();
     let contested = contenders.iter().any(|&a| {
         contenders
