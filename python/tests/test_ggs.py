@@ -420,7 +420,14 @@ def test_verify_score_tight_weighs_closeness_fitness_counts():
     for t, f in zip(tight.verified, fitness.verified):
         assert t["score"] <= f["score"]
     assert tight.verified[0]["score"] < fitness.verified[0]["score"]
-    with pytest.raises(ValueError, match="tight or fitness"):
+    # Oriented counts a subset of the tight score's points, with the same weights.
+    oriented = ggs.register(
+        source, target, voxel=0.006, max_hypotheses=3, margin=0.0, verify_score="oriented"
+    )
+    assert [o["rank"] for o in oriented.verified] == [t["rank"] for t in tight.verified]
+    for o, t in zip(oriented.verified, tight.verified):
+        assert o["score"] <= t["score"]
+    with pytest.raises(ValueError, match="tight, fitness or oriented"):
         ggs.register(source, target, voxel=0.006, verify_score="close")
     with pytest.raises(ValueError, match="need verification"):
         ggs.register(source, target, voxel=0.006, verify=False, verify_score="fitness")
