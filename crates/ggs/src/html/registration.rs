@@ -204,12 +204,16 @@ fn hypotheses_html(reg: &Registration) -> String {
     s += &definition(
         "verification score",
         "(f_s + f_t) / 2 within D",
-        "After a short ICP from the hypothesis on thinned clouds: f_s is the share of source \
-         points within D of a target point, f_t the share of target points within D of a moved \
-         source point, D = max(0.3 voxel, 2 × the target's point spacing). The best score is \
-         chosen; confidence = 1 − runner-up / chosen, where the runner-up is the best pose more \
-         than the distinct radius in rotation (or 3 voxels in where it puts the source's \
-         centroid) from the chosen one.",
+        "After a short ICP from the hypothesis on thinned clouds: f_s sums over the source \
+         points w(d), d the distance to the nearest target point, divided by their number; f_t \
+         the same for the target points against the moved source. w(d) = 1 − d²/D² within D, \
+         0 beyond (score `tight`, the default); w = 1 within D (`fitness`); `oriented`: as \
+         `tight`, where the two points' normals face the same way. D = max(0.2 voxel, 1.5 × \
+         the target's point spacing). A hypothesis whose ICP reaches an earlier verified pose \
+         stops and carries that pose's score. The best score is chosen; confidence = 1 − \
+         runner-up / chosen, where the runner-up is the best pose more than the distinct \
+         radius in rotation (or 3 voxels in where it puts the source's centroid) from the \
+         chosen one.",
     );
     s
 }
