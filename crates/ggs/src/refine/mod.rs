@@ -256,7 +256,8 @@ pub fn quantile(values: &mut [f64], q: f64) -> f64 {
 /// The `q` quantile of the positive distances from each moved source point `T·p` to its
 /// nearest target point (`None` when every distance is 0). Most source points of a coarse
 /// alignment lie within a few point spacings of the target: those are found on a grid of
-/// radius `R` (the target's median k-th-neighbour distance); the others only count as
+/// radius `R = start_radius` (the target's median k-th-neighbour distance; `None`: the tree
+/// measures every point); the others only count as
 /// "farther than `R`" unless the quantile falls among them, when the points not found yet are
 /// searched again within `2R`, `4R`, … (at most [`QUANTILE_ROUNDS`] times) and, if the
 /// quantile still falls beyond, measured by the k-d tree. Every distance found is the exact
@@ -266,7 +267,7 @@ fn nearest_distance_quantile(
     t: &Rigid,
     tgt: &[Point],
     tindex: &PointIndex,
-    k: usize,
+    start_radius: Option<f64>,
     q: f64,
 ) -> Option<f64> {
     let moved: Vec<Point> = src.iter().map(|p| t.apply(p)).collect();
@@ -276,7 +277,7 @@ fn nearest_distance_quantile(
         let mut d: Vec<f64> = dist.iter().copied().filter(|&d| d > 0.0).collect();
         (!d.is_empty()).then(|| quantile(&mut d, q))
     };
-    if let Some(r0) = grid::median_kth_distance(tgt, tindex, k) {
+    if let Some(r0) = start_radius {
         let mut r = r0;
         for _ in 0..QUANTILE_ROUNDS {
             let search = RadiusSearch::new(tgt, r, Some(tindex));
@@ -386,7 +387,7 @@ fn correspondence_distance(pair: &PreparedPair, t: &Rigid, cfg: &RefineConfig) -
             t,
             &pair.target.points,
             pair.target.index(),
-            cfg.neighbors,
+            pair.target.median_kth_distance(),
             q,
         ),
     }
@@ -698,7 +699,8 @@ mod tests {
                 .filter(|&d| d > 0.0)
                 .collect();
             let expected = quantile(&mut all, q);
-            let got = nearest_distance_quantile(&src, &t, &tgt, &tindex, 20, q).unwrap();
+            let r0 = grid::median_kth_distance(&tgt, &tindex, 20);
+            let got = nearest_distance_quantile(&src, &t, &tgt, &tindex, r0, q).unwrap();
             assert_eq!(got.to_bits(), expected.to_bits(), "shift {shift} q {q}");
         }
     }

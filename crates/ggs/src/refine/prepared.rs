@@ -26,6 +26,7 @@ pub struct PreparedCloud {
     epsilon: f64,
     index: OnceLock<PointIndex>,
     shapes: OnceLock<LazyShapes>,
+    median_kth: OnceLock<Option<f64>>,
 }
 
 impl PreparedCloud {
@@ -36,7 +37,18 @@ impl PreparedCloud {
             epsilon,
             index: OnceLock::new(),
             shapes: OnceLock::new(),
+            median_kth: OnceLock::new(),
         }
+    }
+
+    /// [`super::grid::median_kth_distance`] of the points to their `neighbors`-th nearest
+    /// (computed on first use and kept: every refinement of the pair starts its correspondence
+    /// distance's search there, and it costs 512 k-NN queries, half of that search on the
+    /// bunny scans).
+    pub fn median_kth_distance(&self) -> Option<f64> {
+        *self.median_kth.get_or_init(|| {
+            super::grid::median_kth_distance(&self.points, self.index(), self.neighbors)
+        })
     }
 
     /// The k-d tree of the points (built on first use).
