@@ -593,19 +593,21 @@ fn verify_hypotheses(
     // Translations compared where they put the source's centroid: `t` itself depends on the
     // frame's origin (1° apart about an origin 4000 km away, as in UTM coordinates, is 70 km).
     let c = source.centroid().expect("non-empty");
-    let distinct = |a: &Rigid, b: &Rigid| {
+    // Two poses apart: the angle between their rotations (degrees) and the distance between
+    // where they put the source's centroid.
+    let gap = |a: &Rigid, b: &Rigid| {
         let (pa, pb) = (a.apply(&c), b.apply(&c));
         let moved =
             ((pa[0] - pb[0]).powi(2) + (pa[1] - pb[1]).powi(2) + (pa[2] - pb[2]).powi(2)).sqrt();
-        rotation_angle_deg(&a.rotation, &b.rotation) > coarse.stats.distinct_radius_deg
-            || moved > DISTINCT_TRANSLATION_VOXELS * voxel
+        (rotation_angle_deg(&a.rotation, &b.rotation), moved)
+    };
+    let distinct = |a: &Rigid, b: &Rigid| {
+        let (deg, moved) = gap(a, b);
+        deg > coarse.stats.distinct_radius_deg || moved > DISTINCT_TRANSLATION_VOXELS * voxel
     };
     let same_pose = |a: &Rigid, b: &Rigid| {
-        let (pa, pb) = (a.apply(&c), b.apply(&c));
-        let moved =
-            ((pa[0] - pb[0]).powi(2) + (pa[1] - pb[1]).powi(2) + (pa[2] - pb[2]).powi(2)).sqrt();
-        rotation_angle_deg(&a.rotation, &b.rotation) <= SAME_POSE_DEG
-            && moved <= SAME_POSE_VOXELS * voxel
+        let (deg, moved) = gap(a, b);
+        deg <= SAME_POSE_DEG && moved <= SAME_POSE_VOXELS * voxel
     };
     let mut out: Vec<VerifiedHypothesis> = Vec::new();
     let mut best = 0.0f64;

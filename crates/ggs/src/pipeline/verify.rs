@@ -175,7 +175,8 @@ const NORMAL_NEIGHBORS: usize = 10;
 
 /// The normal at each of `at`: the eigenvector of the smallest eigenvalue of the covariance
 /// of its [`NORMAL_NEIGHBORS`] nearest points of `cloud` (indexed by `index`), turned to point
-/// away from `centroid`; zero where the neighbourhood is degenerate.
+/// away from `centroid` (a degenerate neighbourhood gets the z axis, the fallback of
+/// [`crate::refine::covariance::Moments::shape`]).
 fn normals(
     at: &[Point],
     cloud: &[Point],
@@ -192,17 +193,6 @@ fn normals(
             [(s * n[0]) as f32, (s * n[1]) as f32, (s * n[2]) as f32]
         })
         .collect()
-}
-
-/// The centroid of `points`.
-fn centroid(points: &[Point]) -> Point {
-    let mut c = [0.0; 3];
-    for p in points {
-        for d in 0..3 {
-            c[d] += p[d];
-        }
-    }
-    c.map(|v| v / points.len().max(1) as f64)
 }
 
 /// One point's full weight: weights are integers in `[0, WEIGHT_ONE]`.
@@ -228,6 +218,7 @@ impl Verifier {
                 crate::refine::neighbors::PointIndex::new(&source_index),
                 crate::refine::neighbors::PointIndex::new(&target_index),
             );
+            let centroid = |c: &[Point]| crate::cloud::centroid_of(c).expect("non-empty");
             let (sc, tc) = (centroid(&source_index), centroid(&target_index));
             [
                 normals(&source_sample, &source_index, &si, &sc),
@@ -247,8 +238,7 @@ impl Verifier {
         }
     }
 
-    /// Whether normal `a` turned by `r` and normal `b` face the same way (always true when
-    /// the score does not look at normals, or either normal is unknown).
+    /// Whether normal `a` turned by `r` and normal `b` face the same way: `(r·a)·b ≥ 0`.
     #[inline]
     fn facing(r: &nalgebra::Matrix3<f64>, a: &Normal, b: &Normal) -> bool {
         let a = r * nalgebra::Vector3::new(a[0] as f64, a[1] as f64, a[2] as f64);
