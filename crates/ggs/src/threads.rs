@@ -12,6 +12,18 @@ pub fn resolve(n: usize) -> usize {
     }
 }
 
+/// `f` run on `resolve(n)` threads: in the pool it is called from when that pool has as many
+/// (a registration's stages share its pool, and nested parallel work is scheduled there), on
+/// a new pool otherwise.
+pub fn in_pool<R: Send>(n: usize, f: impl FnOnce() -> R + Send) -> Result<R> {
+    let threads = resolve(n);
+    if rayon::current_thread_index().is_some() && rayon::current_num_threads() == threads {
+        return Ok(f());
+    }
+    let (pool, _) = pool(n)?;
+    Ok(pool.install(f))
+}
+
 /// A rayon pool of `resolve(n)` threads, and that count.
 pub fn pool(n: usize) -> Result<(rayon::ThreadPool, usize)> {
     let threads = resolve(n);

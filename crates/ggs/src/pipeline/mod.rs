@@ -38,6 +38,7 @@ use crate::refine::{refine_prepared, PreparedPair, RefineConfig, RefineResult};
 use crate::rotations::{RotationSet, DEFAULT_SET};
 use crate::transform::{rotation_angle_deg, Rigid};
 pub use polish::PolishConfig;
+use rayon::prelude::*;
 use std::time::Instant;
 pub use verify::{Evidence, VerifyConfig, VerifyScore};
 
@@ -609,25 +610,26 @@ fn verify_hypotheses(
         let (deg, moved) = gap(a, b);
         deg <= SAME_POSE_DEG && moved <= SAME_POSE_VOXELS * voxel
     };
+    let todo = candidates(coarse, v, |a, b| !distinct(a, b));
+    // Every hypothesis's polish and first stage depend on its start alone: they run side by
+    // side, and the decisions that depend on the hypotheses before are then taken in order.
+    let firsts: Vec<(Hypothesis, verify::FirstStage)> = todo
+        .par_iter()
+        .map(|(h, _)| {
+            let polished = maybe_polished(source, target, h, search, cfg)?;
+            let first = verify::first_stage(&thinned, &verifier, &polished.transform, &icp, v)?;
+            Ok((polished, first))
+        })
+        .collect::<Result<_>>()?;
     let mut out: Vec<VerifiedHypothesis> = Vec::new();
     let mut best = 0.0f64;
-    let todo = candidates(coarse, v, |a, b| !distinct(a, b));
-    for (rank, (h, level)) in todo.iter().enumerate() {
-        let polished = maybe_polished(source, target, h, search, cfg)?;
+    for (rank, ((h, level), (polished, first))) in todo.iter().zip(firsts).enumerate() {
         let known = |t: &Rigid| {
             out.iter()
                 .find(|o| !o.rejected_early && o.same_as.is_none() && same_pose(&o.transform, t))
                 .map(|o| (o.rank, o.evidence))
         };
-        let c = verify::check(
-            &thinned,
-            &verifier,
-            &polished.transform,
-            &icp,
-            v,
-            best,
-            &known,
-        )?;
+        let c = verify::finish(first, &thinned, &verifier, &icp, v, best, &known)?;
         best = best.max(c.evidence.score);
         out.push(VerifiedHypothesis {
             rank,

@@ -312,12 +312,48 @@ pub struct Checked {
     pub same_as: Option<usize>,
 }
 
+/// The first stage of [`check`]: `check_iterations` of ICP from a start, and the evidence of
+/// where they end. It depends on nothing but its start, so the hypotheses of a pair run it
+/// side by side ([`first_stage`]); what follows depends on the hypotheses before ([`finish`]).
+#[derive(Debug, Clone)]
+pub struct FirstStage {
+    run: crate::refine::RefineResult,
+    evidence: Evidence,
+}
+
+/// ICP of the verification from `from` for `iterations` on the thinned clouds.
+fn verification_run(
+    thinned: &PreparedPair,
+    from: &Rigid,
+    refine_cfg: &RefineConfig,
+    iterations: usize,
+) -> Result<crate::refine::RefineResult> {
+    let c = RefineConfig {
+        max_iterations: iterations,
+        ..*refine_cfg
+    };
+    refine_prepared(thinned, from, &c)
+}
+
+/// Refine `start` for `cfg.check_iterations` on the thinned clouds and score where it ends.
+pub fn first_stage(
+    thinned: &PreparedPair,
+    verifier: &Verifier,
+    start: &Rigid,
+    refine_cfg: &RefineConfig,
+    cfg: &VerifyConfig,
+) -> Result<FirstStage> {
+    let run = verification_run(thinned, start, refine_cfg, cfg.check_iterations)?;
+    let evidence = verifier.evidence(&run.transform);
+    Ok(FirstStage { run, evidence })
+}
+
 /// Refine `start` on the thinned clouds and score it, stopping early when it scores below
 /// `reject_ratio × best_so_far` at the check, or when `known` says that the pose reached by
 /// then is that of an earlier verified hypothesis (index and evidence): the rest of its ICP
 /// would converge where that one did, so it carries that one's evidence and, scoring no
 /// higher, is never chosen over it. On the bunny pair three of eleven hypotheses end on the
-/// winner's pose.
+/// winner's pose. The same as [`first_stage`] then [`finish`].
 pub fn check(
     thinned: &PreparedPair,
     verifier: &Verifier,
@@ -327,14 +363,33 @@ pub fn check(
     best_so_far: f64,
     known: &dyn Fn(&Rigid) -> Option<(usize, Evidence)>,
 ) -> Result<Checked> {
-    let run = |from: &Rigid, iterations: usize| {
-        let c = RefineConfig {
-            max_iterations: iterations,
-            ..*refine_cfg
-        };
-        refine_prepared(thinned, from, &c)
-    };
-    let first = run(start, cfg.check_iterations)?;
+    let first = first_stage(thinned, verifier, start, refine_cfg, cfg)?;
+    finish(
+        first,
+        thinned,
+        verifier,
+        refine_cfg,
+        cfg,
+        best_so_far,
+        known,
+    )
+}
+
+/// The rest of [`check`] after its first stage: the decision at the check and, for a
+/// hypothesis that goes on, its second run.
+pub fn finish(
+    first: FirstStage,
+    thinned: &PreparedPair,
+    verifier: &Verifier,
+    refine_cfg: &RefineConfig,
+    cfg: &VerifyConfig,
+    best_so_far: f64,
+    known: &dyn Fn(&Rigid) -> Option<(usize, Evidence)>,
+) -> Result<Checked> {
+    let FirstStage {
+        run: first,
+        evidence,
+    } = first;
     let mut iterations = first.report.iterations;
     if let Some((k, evidence)) = known(&first.transform) {
         return Ok(Checked {
@@ -345,7 +400,6 @@ pub fn check(
             same_as: Some(k),
         });
     }
-    let evidence = verifier.evidence(&first.transform);
     let rejected = evidence.score < cfg.reject_ratio * best_so_far;
     if rejected || !more_iterations(&first, cfg) {
         return Ok(Checked {
@@ -356,7 +410,8 @@ pub fn check(
             same_as: None,
         });
     }
-    let second = run(&first.transform, cfg.max_iterations - cfg.check_iterations)?;
+    let rest = cfg.max_iterations - cfg.check_iterations;
+    let second = verification_run(thinned, &first.transform, refine_cfg, rest)?;
     iterations += second.report.iterations;
     Ok(Checked {
         transform: second.transform,

@@ -529,6 +529,26 @@ impl<'a> RadiusSearch<'a> {
     }
 }
 
+impl RadiusSearch<'_> {
+    /// [`Self::nearest`] given `hint`, a point of the set (the answer of the previous ICP
+    /// iteration): the same answer, found on the grid by scanning only within the hint's
+    /// distance when that is less than `r`: once ICP settles, one or two cells instead of
+    /// eight. Exact: every point nearer than the hint lies within it, and a point as near is
+    /// included (the bound is inclusive and its distance is computed by the same expression as
+    /// the scan's), so the tie still goes to the lowest index.
+    #[inline]
+    pub fn nearest_near(&self, q: &Point, hint: Option<&Point>) -> Option<(usize, f64)> {
+        match (&self.grid, hint) {
+            (Some(g), Some(h)) => {
+                let d = [h[0] - q[0], h[1] - q[1], h[2] - q[2]];
+                let d2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+                g.nearest_within(q, if d2 < self.r2 { d2 } else { self.r2 })
+            }
+            _ => self.nearest(q),
+        }
+    }
+}
+
 /// The median distance to the k-th neighbour over an evenly strided sample of up to 512
 /// points, or `None` for a degenerate cloud (all points equal). A k-NN grid takes cells of
 /// [`KNN_CELL_FACTOR`] times this, so that most points are certified within their 3×3×3

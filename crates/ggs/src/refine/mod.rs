@@ -368,9 +368,8 @@ pub fn refine_prepared(
         }
         _ => {}
     }
-    let (pool, _) = crate::threads::pool(cfg.threads)?;
     let init_l = pair.to_local(init);
-    let mut r = pool.install(|| refine_in_pool(pair, &init_l, cfg))?;
+    let mut r = crate::threads::in_pool(cfg.threads, || refine_in_pool(pair, &init_l, cfg))??;
     r.transform = pair.to_global(&r.transform);
     Ok(r)
 }
@@ -462,11 +461,16 @@ struct Run {
 /// The correspondence sums of every source point at `t`: inlier statistics, and the
 /// estimator's (normal equations, or Kabsch sums for point-to-point). Accumulated in fixed
 /// chunks summed in order, so independent of the thread count.
+///
+/// `hints[i]` is source point `i`'s correspondence at the previous iteration ([`NO_HINT`]:
+/// none); the search starts from it ([`RadiusSearch::nearest_near`], the same answer) and
+/// it is replaced by this iteration's.
 fn accumulate(
     pair: &PreparedPair,
     tsearch: &RadiusSearch,
     t: &Rigid,
     cfg: &RefineConfig,
+    hints: &mut [u32],
 ) -> (Stats, NormalEquations, KabschSums) {
     let (r, tt) = (t.rotation, t.translation);
     let tgt = &pair.target.points;
@@ -474,14 +478,18 @@ fn accumulate(
         .source
         .points
         .par_chunks(CHUNK)
+        .zip(hints.par_chunks_mut(CHUNK))
         .enumerate()
-        .map(|(ci, chunk)| {
+        .map(|(ci, (chunk, hint))| {
             let mut st = Stats::default();
             let mut ne = NormalEquations::default();
             let mut ks = KabschSums::default();
             for (k, p) in chunk.iter().enumerate() {
                 let pm = r * v3(p) + tt;
-                let Some((j, dd)) = tsearch.nearest(&[pm.x, pm.y, pm.z]) else {
+                let near = (hint[k] != NO_HINT).then(|| &tgt[hint[k] as usize]);
+                let found = tsearch.nearest_near(&[pm.x, pm.y, pm.z], near);
+                hint[k] = found.map_or(NO_HINT, |(j, _)| u32::try_from(j).unwrap_or(NO_HINT));
+                let Some((j, dd)) = found else {
                     continue;
                 };
                 st.inliers += 1;
@@ -517,6 +525,9 @@ fn accumulate(
     (st, ne, ks)
 }
 
+/// No correspondence at the previous iteration (see [`accumulate`]).
+const NO_HINT: u32 = u32::MAX;
+
 /// The ICP loop from `init` at the correspondence distance of `tsearch` (see the module
 /// documentation for the stopping rules).
 fn iterate(
@@ -541,9 +552,10 @@ fn iterate(
         run.converged = converged;
         run.stop_reason = why.into();
     };
+    let mut hints = vec![NO_HINT; n_source];
     for _ in 0..cfg.max_iterations {
         let t = run.transform;
-        let (st, ne, ks) = accumulate(pair, tsearch, &t, cfg);
+        let (st, ne, ks) = accumulate(pair, tsearch, &t, cfg, &mut hints);
         if st.inliers < min_pairs {
             stop(&mut run, false, "too few correspondences");
             break;
