@@ -32,6 +32,60 @@ pub struct BestOffset {
     pub offset: [usize; 3],
 }
 
+/// At most this many candidate offsets are kept per approximate best (on the bunny pair's
+/// voxel-size level: 2 in the median, 18 at most).
+pub const MAX_CANDIDATES: usize = 24;
+
+/// The offsets `a` whose computed output reaches `value − 2·error_bound`, in x-major C
+/// order, or none when there were more than [`MAX_CANDIDATES`]. Every offset where the exact
+/// best is reached is among them: with `M = max m`, `a*` the offset of `value` and `a'` one
+/// where `m(a') = M`, `computed(a') ≥ m(a') − bound ≥ m(a*) − bound ≥ value − 2·bound`.
+/// So the exact best is settled by computing `m` at these offsets alone
+/// ([`Correlator::exact_among`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Candidates {
+    /// Offsets kept; `u8::MAX`: too many, none kept.
+    len: u8,
+    at: [[u16; 3]; MAX_CANDIDATES],
+}
+
+impl Candidates {
+    /// No candidates kept: an exact re-scoring correlates again.
+    pub const NONE: Candidates = Candidates {
+        len: u8::MAX,
+        at: [[0; 3]; MAX_CANDIDATES],
+    };
+
+    /// `offsets` (x-major C order) when they are few enough and fit 16 bits, else
+    /// [`Candidates::NONE`].
+    pub fn of(offsets: impl ExactSizeIterator<Item = [usize; 3]>) -> Candidates {
+        if offsets.len() > MAX_CANDIDATES {
+            return Candidates::NONE;
+        }
+        let mut c = Candidates {
+            len: 0,
+            at: [[0; 3]; MAX_CANDIDATES],
+        };
+        for a in offsets {
+            let (Ok(x), Ok(y), Ok(z)) = (a[0].try_into(), a[1].try_into(), a[2].try_into()) else {
+                return Candidates::NONE;
+            };
+            c.at[c.len as usize] = [x, y, z];
+            c.len += 1;
+        }
+        c
+    }
+
+    /// The offsets, if kept.
+    pub fn offsets(&self) -> Option<impl Iterator<Item = [usize; 3]> + '_> {
+        (self.len != u8::MAX).then(|| {
+            self.at[..self.len as usize]
+                .iter()
+                .map(|a| a.map(usize::from))
+        })
+    }
+}
+
 /// Approximate best of one rotation from a reduced-precision correlation: the largest
 /// computed output and a bound on how far the exact best match score can be from it,
 /// `|max_a m(a) − value| ≤ error_bound`.
@@ -41,6 +95,8 @@ pub struct ApproxBest {
     pub error_bound: f64,
     /// Offset of `value` (the exact best may sit elsewhere when several are close).
     pub offset: [usize; 3],
+    /// Where the exact best can be.
+    pub candidates: Candidates,
 }
 
 impl ApproxBest {
@@ -61,6 +117,7 @@ impl From<BestOffset> for ApproxBest {
             value: b.match_score as f64,
             error_bound: 0.0,
             offset: b.offset,
+            candidates: Candidates::of([b.offset].into_iter()),
         }
     }
 }
@@ -145,6 +202,19 @@ pub trait Correlator: Sync {
         src: &RotatedSources<'_>,
         indices: &[usize],
     ) -> Result<(Vec<BestOffset>, StageTimes)>;
+    /// [`Self::exact`], given for each rotation the candidates of its approximate best
+    /// (`candidates[i]` for `indices[i]`): a backend may then compute the match score at those
+    /// offsets alone. The default correlates again.
+    fn exact_among(
+        &self,
+        ctl: &PassControl<'_>,
+        src: &RotatedSources<'_>,
+        indices: &[usize],
+        candidates: &[Candidates],
+    ) -> Result<(Vec<BestOffset>, StageTimes)> {
+        debug_assert_eq!(indices.len(), candidates.len());
+        self.exact(ctl, src, indices)
+    }
     /// Approximate bests with proven bounds, in the order of `indices`. The default is the
     /// exact scores as intervals of width 0, for a backend with no faster approximate path.
     fn approx(

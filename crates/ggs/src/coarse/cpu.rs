@@ -27,7 +27,7 @@
 //! ([`CpuCorrelator::approx_best`], [`CpuCorrelator::error_bound`]); the search re-scores in
 //! f64 every rotation whose bound reaches the best exact score, so its picks are the f64 ones.
 
-pub use super::correlator::{ApproxBest, BestOffset};
+pub use super::correlator::{ApproxBest, BestOffset, Candidates, MAX_CANDIDATES};
 use super::geometry::X_BLOCK;
 pub use super::geometry::{fast_len, is_3_smooth, Geometry};
 use super::grid_view::GridView;
@@ -83,6 +83,8 @@ pub struct Workspace<T: Real = f64> {
     zrow: Vec<Complex<T>>,
     rrow: Vec<T>,
     scratch: Vec<Complex<T>>,
+    /// Outputs near the running best of [`CpuCorrelator::approx_best`] and their offsets.
+    near_best: Vec<(T, [usize; 3])>,
     /// Σ over the source grid (its occupied cells), from the spectrum's DC bin.
     occupied_estimate: f64,
     ns: [usize; 3],
@@ -257,6 +259,7 @@ impl<T: Real> CpuCorrelator<T> {
             zrow: vec![zero; kz],
             rrow: vec![T::zero(); lz],
             scratch: vec![zero; self.scratch_len],
+            near_best: Vec::new(),
             occupied_estimate: 0.0,
             ns: [0; 3],
             t_forward: Duration::ZERO,
@@ -332,12 +335,25 @@ impl<T: Real> CpuCorrelator<T> {
         2.0 * (2.0 * eps + 4.0 * u) * occupied.max(0.0).sqrt() * self.kernel_peak
     }
 
-    /// Correlate in `T` and return the largest computed output with its error bound.
+    /// Correlate in `T` and return the largest computed output with its error bound and the
+    /// offsets whose outputs reach within twice the bound of it ([`Candidates`]).
     pub fn approx_best(&self, ws: &mut Workspace<T>) -> ApproxBest {
         let mut best = T::neg_infinity();
         let mut offset = [0; 3];
         self.stage_forward(ws);
         self.stage_product(ws);
+        let bound = self.error_bound(ws.occupied_estimate);
+        // Outputs are kept while they reach `best − 2·bound` for the best so far (which only
+        // rises, so the final list holds the final one's). Compared in f64, where every T
+        // output is exact, with the floor lowered by more than its rounding: keeping more is
+        // safe, missing one is not.
+        let floor_of = |best: T| {
+            let b = best.to_f64().unwrap_or(f64::NAN);
+            (b - 2.0 * bound) - (b.abs() + 2.0 * bound) * 1e-12
+        };
+        let reaches = |v: T, floor: f64| v.to_f64().is_none_or(|v| v >= floor || v.is_nan());
+        let mut near = std::mem::take(&mut ws.near_best);
+        near.clear();
         self.stage_inverse_rows(ws, |[ax, ay], first, second| {
             // A branch-free (vectorizable) maximum per row; the position only when it wins.
             let row_max = |r: &[T]| {
@@ -354,13 +370,82 @@ impl<T: Real> CpuCorrelator<T> {
                     .unwrap_or(0);
                 offset = [ax, ay, az];
             }
+            let floor = floor_of(best);
+            if reaches(m, floor) {
+                for (az, &v) in first.iter().chain(second).enumerate() {
+                    if reaches(v, floor) {
+                        near.push((v, [ax, ay, az]));
+                    }
+                }
+                if near.len() > 4 * MAX_CANDIDATES {
+                    near.retain(|&(v, _)| reaches(v, floor));
+                }
+            }
         });
-        let best = best.to_f64().unwrap_or(f64::NAN);
+        let floor = floor_of(best);
+        let candidates = Candidates::of(
+            near.iter()
+                .filter(|&&(v, _)| reaches(v, floor))
+                .map(|&(_, a)| a)
+                .collect::<Vec<_>>()
+                .into_iter(),
+        );
+        ws.near_best = near;
         ApproxBest {
-            value: best,
-            error_bound: self.error_bound(ws.occupied_estimate),
+            value: best.to_f64().unwrap_or(f64::NAN),
+            error_bound: bound,
             offset,
+            candidates,
         }
+    }
+
+    /// The exact best among `candidates` (x-major C order) of the source grid in `ws` (not yet
+    /// transformed), straight from the definition: `m(a) = Σ 5·[O_k(u)] − [¬O_k(u)]` over the
+    /// occupied source cells `x` whose `u = x + C − a` falls in the kernel; ties to the first.
+    /// Equal to [`CpuCorrelator::best_offset`] when `candidates` hold every offset reaching the
+    /// best (see [`Candidates`]).
+    pub fn exact_among(
+        &self,
+        ws: &Workspace<T>,
+        kernel: &Occupancy,
+        candidates: impl Iterator<Item = [usize; 3]>,
+    ) -> BestOffset {
+        let lz = ws.rrow.len();
+        let [nx, ny, nz] = ws.ns;
+        let mut cells: Vec<[usize; 3]> = Vec::new();
+        for i in 0..nx {
+            for j in 0..ny {
+                let row = &ws.real[(i * ws.ay + j) * lz..][..nz];
+                for (k, &v) in row.iter().enumerate() {
+                    if v != T::zero() {
+                        cells.push([i, j, k]);
+                    }
+                }
+            }
+        }
+        let c = self.geo.center;
+        let nr = kernel.dims;
+        let mut best = BestOffset {
+            match_score: i64::MIN,
+            offset: [0; 3],
+        };
+        for a in candidates {
+            let mut m = 0i64;
+            for x in &cells {
+                // u = x + C − a, inside the kernel box.
+                let u = [0, 1, 2].map(|d| (x[d] + c[d]).wrapping_sub(a[d]));
+                if u[0] < nr[0] && u[1] < nr[1] && u[2] < nr[2] {
+                    m += if kernel.get(u[0], u[1], u[2]) { 5 } else { -1 };
+                }
+            }
+            if m > best.match_score {
+                best = BestOffset {
+                    match_score: m,
+                    offset: a,
+                };
+            }
+        }
+        best
     }
 
     /// Every output of the correlation, in x-major C order over the valid offsets.
@@ -633,6 +718,93 @@ mod tests {
 
     /// f32 outputs stay within the proven bound of the exact scores, on every offset, and
     /// the bound is small enough to be useful (far below the score range).
+    /// The f32 pass's candidates hold every offset where the exact best is reached, and the
+    /// sparse exact score among them equals the f64 correlation's best offset (value and
+    /// offset, ties included), on random grids and on grids built to tie.
+    #[test]
+    fn the_exact_best_among_the_candidates_is_the_f64_best() {
+        let mut next = crate::test_rng::uniform(77);
+        let fill = |ws: &mut Workspace<f32>, src: &Occupancy| {
+            ws.begin(src.dims);
+            for i in 0..src.dims[0] {
+                for j in 0..src.dims[1] {
+                    for l in 0..src.dims[2] {
+                        if src.get(i, j, l) {
+                            ws.set(i, j, l);
+                        }
+                    }
+                }
+            }
+        };
+        let mut kept = 0;
+        for case in 0..12 {
+            let n = 5 + 2 * case;
+            let (kd, sd) = ([n, n + 2, n - 1], [n - 2, n + 1, n]);
+            let occ = |dims: [usize; 3], p: f64, next: &mut dyn FnMut() -> f64| Occupancy {
+                dims,
+                cells: (0..dims.iter().product::<usize>())
+                    .map(|_| next() < p)
+                    .collect(),
+            };
+            let (mut k, mut src) = (occ(kd, 0.3, &mut next), occ(sd, 0.25, &mut next));
+            if case % 3 == 2 {
+                // One source cell and three kernel cells: the best (5) is reached at three
+                // offsets, and the tie goes to the first.
+                k.cells.iter_mut().for_each(|c| *c = false);
+                src.cells.iter_mut().for_each(|c| *c = false);
+                let c = Geometry::new(kd, sd).center;
+                for d in [[0, 0, 0], [1, 0, 0], [0, 1, 0]] {
+                    let u = [0, 1, 2].map(|a| c[a] + d[a]);
+                    k.cells[(u[0] * kd[1] + u[1]) * kd[2] + u[2]] = true;
+                }
+                let x = sd.map(|n| n / 2);
+                src.cells[(x[0] * sd[1] + x[1]) * sd[2] + x[2]] = true;
+            }
+            let scores = fft_scores(&src, &k);
+            let max = *scores.iter().max().unwrap();
+            let geo = Geometry::new(k.dims, src.dims);
+            let exact = CpuCorrelator::<f64>::new(geo, &k);
+            let mut ws64 = exact.workspace();
+            ws64.begin(src.dims);
+            for i in 0..sd[0] {
+                for j in 0..sd[1] {
+                    for l in 0..sd[2] {
+                        if src.get(i, j, l) {
+                            ws64.set(i, j, l);
+                        }
+                    }
+                }
+            }
+            let want = exact.best_offset(&mut ws64);
+            let c = CpuCorrelator::<f32>::from_f64(&exact);
+            let mut ws = c.workspace();
+            fill(&mut ws, &src);
+            let approx = c.approx_best(&mut ws);
+            let Some(offsets) = approx.candidates.offsets() else {
+                continue;
+            };
+            let offsets: Vec<[usize; 3]> = offsets.collect();
+            let ties = scores.iter().filter(|&&m| m == max).count();
+            if case % 3 == 2 {
+                assert!(ties >= 2, "case {case}: {ties} offset(s) reach the best");
+            }
+            let flat = |a: [usize; 3]| (a[0] * sd[1] + a[1]) * sd[2] + a[2];
+            for (i, &m) in scores.iter().enumerate() {
+                if m == max {
+                    assert!(offsets.iter().any(|&a| flat(a) == i), "case {case}");
+                }
+            }
+            fill(&mut ws, &src);
+            assert_eq!(
+                c.exact_among(&ws, &k, offsets.into_iter()),
+                want,
+                "case {case}"
+            );
+            kept += 1;
+        }
+        assert!(kept >= 6, "candidates kept in {kept} cases only");
+    }
+
     #[test]
     fn f32_outputs_are_within_the_error_bound() {
         let mut next = crate::test_rng::uniform(41);

@@ -13,7 +13,7 @@
 //! 5. [`passes`]: a scoring pass over a list of rotations on a backend;
 //! 6. [`levels`]: the coarse level of a coarse-to-fine search (rank at a coarser voxel, keep
 //!    the best and their neighbours);
-//! 7. [`selection`]: the exact selection (f64 re-scoring where the f32 bound requires) and the
+//! 7. [`selection`]: the exact selection (exact re-scoring where the f32 bound requires) and the
 //!    distinct hypotheses;
 //! 8. [`result`]: the hypotheses, the statistics and the timings.
 //!

@@ -8,8 +8,8 @@
 //! they equal.
 
 use super::correlator::{
-    as_intervals, ApproxBest, Backend, BestOffset, Correlator, PassControl, RotatedSources, Scores,
-    StageTimes,
+    as_intervals, ApproxBest, Backend, BestOffset, Candidates, Correlator, PassControl,
+    RotatedSources, Scores, StageTimes,
 };
 use super::cpu::{CpuCorrelator, Real, Workspace};
 use super::geometry::Geometry;
@@ -28,7 +28,8 @@ pub struct CpuBackend;
 #[allow(clippy::large_enum_variant)]
 pub enum CpuPlan {
     Approximate(CpuCorrelator<f32>),
-    Mixed(CpuCorrelator<f64>, CpuCorrelator<f32>),
+    /// The kernel is kept for exact scores at a few candidate offsets.
+    Mixed(CpuCorrelator<f64>, CpuCorrelator<f32>, Occupancy),
     Exact(CpuCorrelator<f64>),
 }
 
@@ -44,7 +45,7 @@ impl Backend for CpuBackend {
             Scores::Mixed => {
                 let exact = CpuCorrelator::<f64>::new(geo, kernel);
                 let approx = CpuCorrelator::<f32>::from_f64(&exact);
-                CpuPlan::Mixed(exact, approx)
+                CpuPlan::Mixed(exact, approx, kernel.clone())
             }
             Scores::Exact => CpuPlan::Exact(CpuCorrelator::new(geo, kernel)),
         }))
@@ -55,7 +56,7 @@ impl CpuPlan {
     /// `(|K|, n_k, geometry)`, the same in every correlator of the plan.
     fn kernel(&self) -> (i64, i64, &Geometry) {
         match self {
-            CpuPlan::Approximate(c) | CpuPlan::Mixed(_, c) => {
+            CpuPlan::Approximate(c) | CpuPlan::Mixed(_, c, _) => {
                 (c.kernel_cells, c.kernel_occupied, c.geometry())
             }
             CpuPlan::Exact(c) => (c.kernel_cells, c.kernel_occupied, c.geometry()),
@@ -83,14 +84,52 @@ impl Correlator for CpuPlan {
         indices: &[usize],
     ) -> Result<(Vec<BestOffset>, StageTimes)> {
         match self {
-            CpuPlan::Mixed(c, _) | CpuPlan::Exact(c) => {
-                run_pass(ctl, src, c, indices, |c, ws| c.best_offset(ws))
+            CpuPlan::Mixed(c, _, _) | CpuPlan::Exact(c) => {
+                run_pass(ctl, src, c, indices, |c, ws, _| c.best_offset(ws))
             }
             CpuPlan::Approximate(_) => Err(GgsError::param(
                 "scores",
                 "this correlator was planned for approximate scores only",
             )),
         }
+    }
+
+    /// With a mixed plan, rotations whose candidates were kept are voxelized and scored at
+    /// those offsets ([`CpuCorrelator::exact_among`]); the others are correlated in f64.
+    fn exact_among(
+        &self,
+        ctl: &PassControl<'_>,
+        src: &RotatedSources<'_>,
+        indices: &[usize],
+        candidates: &[Candidates],
+    ) -> Result<(Vec<BestOffset>, StageTimes)> {
+        let CpuPlan::Mixed(_, approx, kernel) = self else {
+            return self.exact(ctl, src, indices);
+        };
+        let (kept, again): (Vec<usize>, Vec<usize>) =
+            (0..indices.len()).partition(|&i| candidates[i].offsets().is_some());
+        let pick = |from: &[usize]| from.iter().map(|&i| indices[i]).collect::<Vec<_>>();
+        let (sparse, mut times) = run_pass(ctl, src, approx, &pick(&kept), |c, ws, slot| {
+            let offsets = candidates[kept[slot]].offsets().expect("kept");
+            c.exact_among(ws, kernel, offsets)
+        })?;
+        times.flops = 0.0;
+        let (full, full_times) = self.exact(ctl, src, &pick(&again))?;
+        times.add(&full_times);
+        let mut out = vec![None; indices.len()];
+        for (i, b) in kept
+            .into_iter()
+            .zip(sparse)
+            .chain(again.into_iter().zip(full))
+        {
+            out[i] = Some(b);
+        }
+        Ok((
+            out.into_iter()
+                .map(|b| b.expect("every rotation scored"))
+                .collect(),
+            times,
+        ))
     }
 
     fn approx(
@@ -100,8 +139,8 @@ impl Correlator for CpuPlan {
         indices: &[usize],
     ) -> Result<(Vec<ApproxBest>, StageTimes)> {
         match self {
-            CpuPlan::Approximate(c) | CpuPlan::Mixed(_, c) => {
-                run_pass(ctl, src, c, indices, |c, ws| c.approx_best(ws))
+            CpuPlan::Approximate(c) | CpuPlan::Mixed(_, c, _) => {
+                run_pass(ctl, src, c, indices, |c, ws, _| c.approx_best(ws))
             }
             CpuPlan::Exact(_) => Ok(as_intervals(self.exact(ctl, src, indices)?)),
         }
@@ -115,7 +154,7 @@ fn run_pass<T: Real, R: Send + Copy>(
     src: &RotatedSources<'_>,
     corr: &CpuCorrelator<T>,
     indices: &[usize],
-    score: impl Fn(&CpuCorrelator<T>, &mut Workspace<T>) -> R + Sync,
+    score: impl Fn(&CpuCorrelator<T>, &mut Workspace<T>, usize) -> R + Sync,
 ) -> Result<(Vec<R>, StageTimes)> {
     let next = AtomicUsize::new(0);
     let done = AtomicUsize::new(0);
@@ -145,7 +184,7 @@ fn run_pass<T: Real, R: Send + Copy>(
                     ws.begin(b.dims);
                     src.cloud.voxelize(&src.rows[k], &b.min, s, ws.grid_mut());
                     t_vox += tv.elapsed();
-                    local.push((slot, score(corr, &mut ws)));
+                    local.push((slot, score(corr, &mut ws, slot)));
                     let n = done.fetch_add(1, Ordering::Relaxed) + 1;
                     if let Some(p) = ctl.progress {
                         p(n);

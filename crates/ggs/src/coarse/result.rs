@@ -42,7 +42,7 @@ pub struct Timings {
     /// Coarse level of a coarse-to-fine search: thinning, its kernel and extents, scoring
     /// every rotation, ranking (wall; not included in the other fields).
     pub coarse_level_ms: f64,
-    /// f64 re-scoring of the rotations whose f32 bound reached the best (wall; included in
+    /// Exact re-scoring of the rotations whose f32 bound reached the best (wall; included in
     /// `search_ms`).
     pub rescore_ms: f64,
 }

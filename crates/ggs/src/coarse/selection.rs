@@ -8,7 +8,7 @@
 //! makes (docs/method.md, "Reduced precision").
 
 use super::correlator::{
-    ApproxBest, BestOffset, Correlator, PassControl, RotatedSources, StageTimes,
+    ApproxBest, BestOffset, Candidates, Correlator, PassControl, RotatedSources, StageTimes,
 };
 use crate::error::Result;
 use std::time::{Duration, Instant};
@@ -31,7 +31,11 @@ pub fn rescore_exact(
     tally: &mut Tally,
 ) -> Result<()> {
     let t = Instant::now();
-    let (found, st) = corr.exact(ctl, src, pending)?;
+    let candidates: Vec<Candidates> = pending
+        .iter()
+        .map(|&k| scores.approx[k].map_or(Candidates::NONE, |a| a.candidates))
+        .collect();
+    let (found, st) = corr.exact_among(ctl, src, pending, &candidates)?;
     tally.times.add(&st);
     for (&k, b) in pending.iter().zip(found) {
         scores.exact[k] = Some(b);
@@ -122,6 +126,7 @@ mod tests {
             value,
             error_bound: bound,
             offset: [0; 3],
+            candidates: Candidates::NONE,
         })
     }
 
