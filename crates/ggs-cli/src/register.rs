@@ -128,6 +128,24 @@ fn load(path: &Path, opts: &ReadOptions, quiet: bool) -> Result<Cloud> {
     Ok(files::load(path, opts, quiet)?.cloud)
 }
 
+/// Both clouds, read side by side unless one thread is asked for (an error names its file;
+/// the source's comes first).
+fn load_pair(args: &RegisterArgs, opts: &ReadOptions) -> Result<(Cloud, Cloud)> {
+    if ggs::threads::resolve(args.threads) == 1 {
+        return Ok((
+            load(&args.source, opts, args.quiet)?,
+            load(&args.target, opts, args.quiet)?,
+        ));
+    }
+    let (source, target) = std::thread::scope(|s| {
+        let target = s.spawn(|| load(&args.target, opts, args.quiet));
+        let source = load(&args.source, opts, args.quiet);
+        (source, target.join())
+    });
+    let target = target.unwrap_or_else(|panic| std::panic::resume_unwind(panic));
+    Ok((source?, target?))
+}
+
 /// The rotation set: --rotations-file, else the configuration's, then --dedup.
 fn rotation_set(args: &RegisterArgs, configured: RotationSet) -> Result<RotationSet> {
     let set = match &args.rotations_file {
@@ -165,8 +183,7 @@ pub fn run(args: RegisterArgs) -> Result<()> {
     let t0 = Instant::now();
     let format = args.io.input.options()?;
     let mut cfg = config(&args)?;
-    let source = load(&args.source, &format, args.quiet)?;
-    let target = load(&args.target, &format, args.quiet)?;
+    let (source, target) = load_pair(&args, &format)?;
     let read_ms = t0.elapsed().as_secs_f64() * 1e3;
     let pb = crate::progress::bar(cfg.rotations.len(), "rotations", args.quiet);
     let pbc = pb.clone();
@@ -449,7 +466,7 @@ fn print_timings(reg: &Registration, read_ms: f64, total_ms: f64) -> Result<()> 
     }
     if r.stats.precision == coarse::Precision::Mixed {
         outln!(
-            "  of which f64 re-scoring ({} rotation(s)) {:>5.1} wall",
+            "  of which exact re-scoring ({} rotation(s)) {:>5.1} wall",
             r.stats.rescored,
             t.rescore_ms
         );
