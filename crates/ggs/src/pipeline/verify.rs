@@ -40,7 +40,7 @@
 use crate::cloud::{Cloud, Point};
 use crate::error::Result;
 use crate::refine::grid::RadiusSearch;
-use crate::refine::{refine_prepared, PreparedPair, RefineConfig};
+use crate::refine::{refine_prepared_pose, PreparedPair, RefineConfig, RefinedPose};
 use crate::transform::Rigid;
 use rayon::prelude::*;
 
@@ -317,7 +317,7 @@ pub struct Checked {
 /// side by side ([`first_stage`]); what follows depends on the hypotheses before ([`finish`]).
 #[derive(Debug, Clone)]
 pub struct FirstStage {
-    run: crate::refine::RefineResult,
+    run: RefinedPose,
     evidence: Evidence,
 }
 
@@ -327,12 +327,12 @@ fn verification_run(
     from: &Rigid,
     refine_cfg: &RefineConfig,
     iterations: usize,
-) -> Result<crate::refine::RefineResult> {
+) -> Result<RefinedPose> {
     let c = RefineConfig {
         max_iterations: iterations,
         ..*refine_cfg
     };
-    refine_prepared(thinned, from, &c)
+    refine_prepared_pose(thinned, from, &c)
 }
 
 /// Refine `start` for `cfg.check_iterations` on the thinned clouds and score where it ends.
@@ -390,7 +390,7 @@ pub fn finish(
         run: first,
         evidence,
     } = first;
-    let mut iterations = first.report.iterations;
+    let mut iterations = first.iterations;
     if let Some((k, evidence)) = known(&first.transform) {
         return Ok(Checked {
             transform: first.transform,
@@ -412,7 +412,7 @@ pub fn finish(
     }
     let rest = cfg.max_iterations - cfg.check_iterations;
     let second = verification_run(thinned, &first.transform, refine_cfg, rest)?;
-    iterations += second.report.iterations;
+    iterations += second.iterations;
     Ok(Checked {
         transform: second.transform,
         evidence: verifier.evidence(&second.transform),
@@ -423,8 +423,8 @@ pub fn finish(
 }
 
 /// Whether a second run can change anything: the first hit its cap, and iterations remain.
-fn more_iterations(first: &crate::refine::RefineResult, cfg: &VerifyConfig) -> bool {
-    !first.report.converged && cfg.max_iterations > cfg.check_iterations
+fn more_iterations(first: &RefinedPose, cfg: &VerifyConfig) -> bool {
+    !first.converged && cfg.max_iterations > cfg.check_iterations
 }
 
 #[cfg(test)]

@@ -344,6 +344,59 @@ pub fn refine_prepared(
     init: &Rigid,
     cfg: &RefineConfig,
 ) -> Result<RefineResult> {
+    check_config(pair, cfg)?;
+    let init_l = pair.to_local(init);
+    let mut r = crate::threads::in_pool(cfg.threads, || {
+        let t0 = Instant::now();
+        let started = start_run(pair, &init_l, cfg)?;
+        let setup_ms = t0.elapsed().as_secs_f64() * 1e3;
+        let t1 = Instant::now();
+        let run = started.iterate(pair, &init_l, cfg);
+        let iterate_ms = t1.elapsed().as_secs_f64() * 1e3;
+        let report = quality(pair, &started.tsearch, &run, started.d_c, started.radius);
+        Ok::<_, GgsError>(RefineResult {
+            transform: run.transform,
+            report,
+            method: cfg.method,
+            setup_ms,
+            iterate_ms,
+            total_ms: t0.elapsed().as_secs_f64() * 1e3,
+        })
+    })??;
+    r.transform = pair.to_global(&r.transform);
+    Ok(r)
+}
+
+/// Where a refinement ended, without its quality report (which costs another pass over
+/// both clouds): what a run that is only a step of a larger procedure needs.
+#[derive(Debug, Clone, Copy)]
+pub struct RefinedPose {
+    pub transform: Rigid,
+    pub iterations: usize,
+    pub converged: bool,
+}
+
+/// [`refine_prepared`]'s pose, iterations and convergence, without the quality report.
+pub fn refine_prepared_pose(
+    pair: &PreparedPair,
+    init: &Rigid,
+    cfg: &RefineConfig,
+) -> Result<RefinedPose> {
+    check_config(pair, cfg)?;
+    let init_l = pair.to_local(init);
+    let run = crate::threads::in_pool(cfg.threads, || {
+        Ok::<_, GgsError>(start_run(pair, &init_l, cfg)?.iterate(pair, &init_l, cfg))
+    })??;
+    Ok(RefinedPose {
+        transform: pair.to_global(&run.transform),
+        iterations: run.iterations,
+        converged: run.converged,
+    })
+}
+
+/// The pair was prepared for the config's neighbours and ε, and the correspondence distance
+/// is valid.
+fn check_config(pair: &PreparedPair, cfg: &RefineConfig) -> Result<()> {
     if cfg.neighbors != pair.neighbors || cfg.epsilon != pair.epsilon {
         return Err(GgsError::param(
             "neighbors",
@@ -354,24 +407,16 @@ pub fn refine_prepared(
         ));
     }
     match cfg.correspondence {
-        CorrespondenceDistance::Quantile(q) if !(0.0..=1.0).contains(&q) => {
-            return Err(GgsError::param(
-                "correspondence",
-                format!("quantile must be in [0, 1], got {q}"),
-            ))
-        }
-        CorrespondenceDistance::Fixed(d) if !(d.is_finite() && d > 0.0) => {
-            return Err(GgsError::param(
-                "correspondence",
-                format!("distance must be positive, got {d}"),
-            ))
-        }
-        _ => {}
+        CorrespondenceDistance::Quantile(q) if !(0.0..=1.0).contains(&q) => Err(GgsError::param(
+            "correspondence",
+            format!("quantile must be in [0, 1], got {q}"),
+        )),
+        CorrespondenceDistance::Fixed(d) if !(d.is_finite() && d > 0.0) => Err(GgsError::param(
+            "correspondence",
+            format!("distance must be positive, got {d}"),
+        )),
+        _ => Ok(()),
     }
-    let init_l = pair.to_local(init);
-    let mut r = crate::threads::in_pool(cfg.threads, || refine_in_pool(pair, &init_l, cfg))??;
-    r.transform = pair.to_global(&r.transform);
-    Ok(r)
 }
 
 /// The correspondence distance of a run from `t` (`None`: every source point already sits on
@@ -392,7 +437,22 @@ fn correspondence_distance(pair: &PreparedPair, t: &Rigid, cfg: &RefineConfig) -
     }
 }
 
-fn refine_in_pool(pair: &PreparedPair, init: &Rigid, cfg: &RefineConfig) -> Result<RefineResult> {
+/// A refinement ready to iterate: the correspondence distance `d_c` of its start (`None`:
+/// every source point already sits on a target point), the target indexed for it, and the
+/// source's radius about its centroid (the translation step's unit).
+struct StartedRun<'a> {
+    d_c: f64,
+    exact: bool,
+    tsearch: RadiusSearch<'a>,
+    radius: f64,
+}
+
+/// Trees, local shapes and the correspondence distance of a run from `init` (pair frame).
+fn start_run<'a>(
+    pair: &'a PreparedPair,
+    init: &Rigid,
+    cfg: &RefineConfig,
+) -> Result<StartedRun<'a>> {
     let t0 = Instant::now();
     // Target normals serve every method: point-to-plane residuals, GICP covariances and the
     // information matrix of the quality report. Source shapes for GICP only.
@@ -425,29 +485,28 @@ fn refine_in_pool(pair: &PreparedPair, init: &Rigid, cfg: &RefineConfig) -> Resu
             format!("correspondence distance is {d_c}: the clouds coincide or are degenerate; pass a fixed distance"),
         ));
     }
-    let setup_ms = t0.elapsed().as_secs_f64() * 1e3;
-    let t1 = Instant::now();
     let tsearch = RadiusSearch::new(&pair.target.points, d_c, Some(pair.target.index()));
-    let run = if exact {
-        Run {
-            transform: *init,
-            iterations: 0,
-            converged: true,
-            stop_reason: "exact overlap".into(),
-        }
-    } else {
-        iterate(pair, &tsearch, init, radius, cfg)
-    };
-    let iterate_ms = t1.elapsed().as_secs_f64() * 1e3;
-    let report = quality(pair, &tsearch, &run, d_c, radius);
-    Ok(RefineResult {
-        transform: run.transform,
-        report,
-        method: cfg.method,
-        setup_ms,
-        iterate_ms,
-        total_ms: t0.elapsed().as_secs_f64() * 1e3,
+    Ok(StartedRun {
+        d_c,
+        exact,
+        tsearch,
+        radius,
     })
+}
+
+impl StartedRun<'_> {
+    /// The ICP loop from `init` (see [`iterate`]), or no iteration when the start is exact.
+    fn iterate(&self, pair: &PreparedPair, init: &Rigid, cfg: &RefineConfig) -> Run {
+        if self.exact {
+            return Run {
+                transform: *init,
+                iterations: 0,
+                converged: true,
+                stop_reason: "exact overlap".into(),
+            };
+        }
+        iterate(pair, &self.tsearch, init, self.radius, cfg)
+    }
 }
 
 /// Where the iterations ended.
