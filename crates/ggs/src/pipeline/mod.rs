@@ -432,37 +432,59 @@ fn register_in_pool(
         s.max(t)
     })?;
     let search = search_config(cfg, voxel);
-    let mut coarse = coarse_register(source, target, &cfg.rotations, &search)?;
+    // What the verification and the final refinement start from depends on the clouds and
+    // the voxel only: it is built while the search runs, on the threads the search leaves
+    // idle (the same results: every piece is a pure function of its inputs).
+    let icp = refine_cfg.unwrap_or(RefineConfig {
+        threads: cfg.threads,
+        ..RefineConfig::default()
+    });
+    let (coarse, (ready, prepared_final)) = rayon::join(
+        || coarse_register(source, target, &cfg.rotations, &search),
+        || {
+            rayon::join(
+                || {
+                    cfg.verify.as_ref().map(|v| {
+                        VerifyReady::new(source, target, voxel, spacing_of_target(), v, icp)
+                    })
+                },
+                // A thinned pair only: a full-resolution one (`--refine-cell 0`) of a large
+                // cloud would add its size to the search's peak memory.
+                || {
+                    refine_cfg
+                        .as_ref()
+                        .filter(|_| cfg.final_stage.cell_voxels > 0.0)
+                        .map(|r| final_pair(source, target, voxel, r, cfg.final_stage))
+                },
+            )
+        },
+    );
+    let mut coarse = coarse?;
     let search_ms = ms(t0);
     let t_verify = Instant::now();
-    let verification = match &cfg.verify {
-        Some(v) => {
-            let spacing = spacing_of_target();
+    let verification = match (&cfg.verify, ready) {
+        (Some(v), Some(ready)) => {
             let inputs = VerifyInputs {
                 source,
                 target,
-                spacing,
                 coarse: &coarse,
                 search: &search,
             };
-            Some(verify_hypotheses(&inputs, cfg, v, &refine_cfg)?)
+            Some(verify_hypotheses(&inputs, ready?, cfg, v)?)
         }
-        None => None,
+        _ => None,
     };
     let (start, coarse_transform, chosen_rank) =
         starting_pose(source, target, &coarse, verification.as_ref(), &search, cfg)?;
     let verify_ms = ms(t_verify);
     let t_refine = Instant::now();
-    let refined = match &refine_cfg {
-        Some(r) => Some(refine_final(
-            source,
-            target,
-            voxel,
-            &start,
-            r,
-            cfg.final_stage,
-        )?),
-        None => None,
+    let refined = match (&refine_cfg, prepared_final) {
+        (Some(r), Some(pair)) => Some(refine_final(&pair?, &start, r, cfg.final_stage)?),
+        (Some(r), None) => {
+            let pair = final_pair(source, target, voxel, r, cfg.final_stage)?;
+            Some(refine_final(&pair, &start, r, cfg.final_stage)?)
+        }
+        (None, _) => None,
     };
     let refine_ms = ms(t_refine);
     let (confidence, ambiguous, warnings) = assess(&coarse, verification.as_ref(), cfg);
@@ -489,12 +511,30 @@ fn register_in_pool(
     })
 }
 
-/// The final refinement of `start`: at full resolution, or on both clouds thinned to cells of
-/// `stage.cell_voxels × voxel`, with `stage.min_step` (see [`FinalStage`]).
-fn refine_final(
+/// The pair of the final refinement: both clouds at full resolution, or thinned to cells of
+/// `stage.cell_voxels × voxel` (see [`FinalStage`]), with its trees and shape grids built.
+fn final_pair(
     source: &Cloud,
     target: &Cloud,
     voxel: f64,
+    r: &RefineConfig,
+    stage: FinalStage,
+) -> Result<PreparedPair> {
+    let stage = stage.with_cell_voxels(stage.cell_voxels)?;
+    let pair = if stage.cell_voxels == 0.0 {
+        PreparedPair::new(source, target, r.neighbors, r.epsilon)?
+    } else {
+        let cell = stage.cell_voxels * voxel;
+        PreparedPair::thinned(source, target, cell, r.neighbors, r.epsilon)?
+    };
+    prepare_pair(&pair, r);
+    Ok(pair)
+}
+
+/// The final refinement of `start` on `pair` ([`final_pair`]) with `stage.min_step` and
+/// `stage.max_iterations` (see [`FinalStage`]).
+fn refine_final(
+    pair: &PreparedPair,
     start: &Rigid,
     r: &RefineConfig,
     stage: FinalStage,
@@ -506,13 +546,7 @@ fn refine_final(
         max_iterations: r.max_iterations.min(stage.max_iterations),
         ..*r
     };
-    if stage.cell_voxels == 0.0 {
-        let full = PreparedPair::new(source, target, r.neighbors, r.epsilon)?;
-        return refine_prepared(&full, start, &r);
-    }
-    let cell = stage.cell_voxels * voxel;
-    let thinned = PreparedPair::thinned(source, target, cell, r.neighbors, r.epsilon)?;
-    refine_prepared(&thinned, start, &r)
+    refine_prepared(pair, start, &r)
 }
 
 /// `h` polished when the config asks for it, else `h` itself.
@@ -569,33 +603,80 @@ fn candidates(
 struct VerifyInputs<'a> {
     source: &'a Cloud,
     target: &'a Cloud,
-    /// The target's point spacing.
-    spacing: f64,
     coarse: &'a SearchResult,
     search: &'a SearchConfig,
 }
 
+/// The verification's structures, which depend on the clouds and the voxel only: the scorer
+/// and the thinned pair of its ICP with its trees and shape grids. Built while the search
+/// runs (see [`register_in_pool`]).
+struct VerifyReady {
+    verifier: verify::Verifier,
+    thinned: PreparedPair,
+    icp: RefineConfig,
+}
+
+impl VerifyReady {
+    fn new(
+        source: &Cloud,
+        target: &Cloud,
+        voxel: f64,
+        spacing: f64,
+        v: &VerifyConfig,
+        icp: RefineConfig,
+    ) -> Result<Self> {
+        let (verifier, thinned) = rayon::join(
+            || verify::Verifier::new(source, target, voxel, spacing, v),
+            || {
+                let cell = v.cell_voxels * voxel;
+                let pair = PreparedPair::thinned(source, target, cell, icp.neighbors, icp.epsilon)?;
+                prepare_pair(&pair, &icp);
+                Ok::<_, GgsError>(pair)
+            },
+        );
+        Ok(VerifyReady {
+            verifier,
+            thinned: thinned?,
+            icp,
+        })
+    }
+}
+
+/// Build what every refinement of `pair` with `r` starts from (trees, shape grids, the
+/// target's median k-th-neighbour distance); each is built on first use otherwise.
+fn prepare_pair(pair: &PreparedPair, r: &RefineConfig) {
+    rayon::join(
+        || {
+            pair.target.prepare();
+            pair.target.median_kth_distance();
+        },
+        || {
+            if r.method == crate::refine::Method::Gicp {
+                pair.source.prepare();
+            }
+        },
+    );
+}
+
 fn verify_hypotheses(
     inputs: &VerifyInputs,
+    ready: VerifyReady,
     cfg: &RegistrationConfig,
     v: &VerifyConfig,
-    refine_cfg: &Option<RefineConfig>,
 ) -> Result<Verification> {
     let VerifyInputs {
         source,
         target,
-        spacing,
         coarse,
         search,
     } = *inputs;
     let voxel = coarse.stats.voxel;
-    let verifier = verify::Verifier::new(source, target, voxel, spacing, v);
+    let VerifyReady {
+        verifier,
+        thinned,
+        icp,
+    } = ready;
     let cell = v.cell_voxels * voxel;
-    let icp = refine_cfg.unwrap_or(RefineConfig {
-        threads: cfg.threads,
-        ..RefineConfig::default()
-    });
-    let thinned = PreparedPair::thinned(source, target, cell, icp.neighbors, icp.epsilon)?;
     // Translations compared where they put the source's centroid: `t` itself depends on the
     // frame's origin (1° apart about an origin 4000 km away, as in UTM coordinates, is 70 km).
     let c = source.centroid().expect("non-empty");
