@@ -140,11 +140,47 @@ pub fn rotation_angle_deg(a: &Matrix3<f64>, b: &Matrix3<f64>) -> f64 {
     ((tr - 1.0) / 2.0).clamp(-1.0, 1.0).acos().to_degrees()
 }
 
+/// `rotation_angle_deg(a, b) <= max_deg`, decided without the arc cosine where the cosine
+/// of the angle, `(tr(aᵀ·b) − 1)/2` (here `Σ a_ij·b_ij`), is more than 1e-9 from
+/// `cos(max_deg)`: the angle is monotone in it, and both ways of computing it agree to
+/// about 1e-15. Closer than that, the answer is [`rotation_angle_deg`]'s itself. A search's
+/// neighbour test runs it hundreds of thousands of times.
+pub fn rotation_within_deg(a: &Matrix3<f64>, b: &Matrix3<f64>, max_deg: f64) -> bool {
+    let tr: f64 = a.iter().zip(b.iter()).map(|(x, y)| x * y).sum();
+    let cos = (tr - 1.0) / 2.0;
+    let cos_max = max_deg.to_radians().cos();
+    if cos > cos_max + 1e-9 {
+        true
+    } else if cos < cos_max - 1e-9 {
+        false
+    } else {
+        rotation_angle_deg(a, b) <= max_deg
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use nalgebra::Rotation3;
     use proptest::prelude::*;
+
+    proptest! {
+        /// The neighbour test without the arc cosine answers as the angle does, near the
+        /// bound and far from it.
+        #[test]
+        fn rotation_within_deg_agrees_with_the_angle(
+            ax in -3.0f64..3.0, ay in -3.0f64..3.0, az in -3.0f64..3.0,
+            bx in -3.0f64..3.0, by in -3.0f64..3.0, bz in -3.0f64..3.0,
+            max in 0.0f64..180.0, near in proptest::bool::ANY,
+        ) {
+            let a = Rotation3::from_euler_angles(ax, ay, az).into_inner();
+            let b = Rotation3::from_euler_angles(bx, by, bz).into_inner();
+            let angle = rotation_angle_deg(&a, &b);
+            // Half the cases put the bound on the angle itself (within rounding).
+            let bound = if near { angle * (1.0 + 1e-13) } else { max };
+            prop_assert_eq!(rotation_within_deg(&a, &b, bound), angle <= bound);
+        }
+    }
 
     fn rigid(ax: f64, ay: f64, az: f64, t: [f64; 3]) -> Rigid {
         let r = Rotation3::from_euler_angles(ax, ay, az).into_inner();

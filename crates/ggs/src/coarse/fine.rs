@@ -12,7 +12,7 @@ use super::voxel::Occupancy;
 use crate::cloud::Cloud;
 use crate::error::{GgsError, Result};
 use crate::rotations::RotationSet;
-use crate::transform::{rotation_angle_deg, Rigid};
+use crate::transform::{rotation_within_deg, Rigid};
 use nalgebra::Vector3;
 use std::time::Instant;
 
@@ -207,7 +207,7 @@ impl<'p> FineLevel<'p> {
             let far = |k: usize| {
                 chosen
                     .iter()
-                    .all(|&c| rotation_angle_deg(&set.matrices[c], &set.matrices[k]) > radius)
+                    .all(|&c| !rotation_within_deg(&set.matrices[c], &set.matrices[k], radius))
             };
             match self.exact_best(ctl, far, tally)? {
                 Some(k) => chosen.push(k),

@@ -11,7 +11,7 @@ use crate::cloud::{Cloud, Point};
 use crate::error::Result;
 use crate::rotations::RotationSet;
 use crate::thin::cell_centroids;
-use crate::transform::{rotation_angle_deg, Rigid};
+use crate::transform::{rotation_within_deg, Rigid};
 use nalgebra::Vector3;
 
 /// Coarse level: score every rotation approximately at `s0 = factor × voxel` with the
@@ -78,7 +78,7 @@ fn distinct_in_order(
         if picks.len() >= count {
             break;
         }
-        let far = |&j: &usize| rotation_angle_deg(&set.matrices[j], &set.matrices[k]) > radius_deg;
+        let far = |&j: &usize| !rotation_within_deg(&set.matrices[j], &set.matrices[k], radius_deg);
         if picks.iter().all(far) {
             picks.push(k);
         }
@@ -142,7 +142,7 @@ pub(super) fn kept_with_neighbours(
     for k in 0..n {
         if !selected[k]
             && kept.iter().any(|&j| {
-                rotation_angle_deg(&set.matrices[j], &set.matrices[k]) <= level.neighbour_deg
+                rotation_within_deg(&set.matrices[j], &set.matrices[k], level.neighbour_deg)
             })
         {
             selected[k] = true;
