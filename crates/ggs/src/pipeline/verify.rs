@@ -35,7 +35,9 @@
 //! so far (a wrong start stops there); otherwise refined again from where it stopped (the
 //! quantile, taken anew, is smaller: a schedule from a larger distance down) for
 //! `max_iterations − check_iterations` more, and scored. The best score wins; ties go to
-//! the better coarse rank.
+//! the better coarse rank. The part before the check depends on the hypothesis alone
+//! ([`first_stage`]), so the pipeline runs it for every hypothesis side by side and takes the
+//! decisions ([`finish`]) in rank order, with the same outcome.
 
 use crate::cloud::{Cloud, Point};
 use crate::error::Result;
