@@ -688,17 +688,22 @@ mod tests {
         let geo = Geometry::new(kernel.dims, source.dims);
         let c = CpuCorrelator::new(geo, kernel);
         let mut ws = c.workspace();
-        ws.begin(source.dims);
-        for i in 0..source.dims[0] {
-            for j in 0..source.dims[1] {
-                for k in 0..source.dims[2] {
-                    if source.get(i, j, k) {
-                        ws.set(i, j, k);
+        load(&mut ws, source);
+        c.all_scores(&mut ws)
+    }
+
+    /// Start `ws` on the occupancy `src`.
+    fn load<T: Real>(ws: &mut Workspace<T>, src: &Occupancy) {
+        ws.begin(src.dims);
+        for i in 0..src.dims[0] {
+            for j in 0..src.dims[1] {
+                for l in 0..src.dims[2] {
+                    if src.get(i, j, l) {
+                        ws.set(i, j, l);
                     }
                 }
             }
         }
-        c.all_scores(&mut ws)
     }
 
     proptest! {
@@ -724,18 +729,6 @@ mod tests {
     #[test]
     fn the_exact_best_among_the_candidates_is_the_f64_best() {
         let mut next = crate::test_rng::uniform(77);
-        let fill = |ws: &mut Workspace<f32>, src: &Occupancy| {
-            ws.begin(src.dims);
-            for i in 0..src.dims[0] {
-                for j in 0..src.dims[1] {
-                    for l in 0..src.dims[2] {
-                        if src.get(i, j, l) {
-                            ws.set(i, j, l);
-                        }
-                    }
-                }
-            }
-        };
         let mut kept = 0;
         for case in 0..12 {
             let n = 5 + 2 * case;
@@ -765,20 +758,11 @@ mod tests {
             let geo = Geometry::new(k.dims, src.dims);
             let exact = CpuCorrelator::<f64>::new(geo, &k);
             let mut ws64 = exact.workspace();
-            ws64.begin(src.dims);
-            for i in 0..sd[0] {
-                for j in 0..sd[1] {
-                    for l in 0..sd[2] {
-                        if src.get(i, j, l) {
-                            ws64.set(i, j, l);
-                        }
-                    }
-                }
-            }
+            load(&mut ws64, &src);
             let want = exact.best_offset(&mut ws64);
             let c = CpuCorrelator::<f32>::from_f64(&exact);
             let mut ws = c.workspace();
-            fill(&mut ws, &src);
+            load(&mut ws, &src);
             let approx = c.approx_best(&mut ws);
             let Some(offsets) = approx.candidates.offsets() else {
                 continue;
@@ -794,7 +778,7 @@ mod tests {
                     assert!(offsets.iter().any(|&a| flat(a) == i), "case {case}");
                 }
             }
-            fill(&mut ws, &src);
+            load(&mut ws, &src);
             assert_eq!(
                 c.exact_among(&ws, &k, offsets.into_iter()),
                 want,
@@ -824,16 +808,7 @@ mod tests {
             let geo = Geometry::new(k.dims, src.dims);
             let c = CpuCorrelator::<f32>::new(geo, &k);
             let mut ws = c.workspace();
-            ws.begin(src.dims);
-            for i in 0..sd[0] {
-                for j in 0..sd[1] {
-                    for l in 0..sd[2] {
-                        if src.get(i, j, l) {
-                            ws.set(i, j, l);
-                        }
-                    }
-                }
-            }
+            load(&mut ws, &src);
             let mut values = Vec::new();
             c.correlate(&mut ws, |v, _| values.push(v as f64));
             let bound = c.error_bound(ws.occupied_estimate);
