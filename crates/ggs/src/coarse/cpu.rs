@@ -853,16 +853,7 @@ mod tests {
         let c = CpuCorrelator::new(geo, &k);
         let mut ws = c.workspace();
         for s in [&big, &small, &big] {
-            ws.begin(s.dims);
-            for i in 0..s.dims[0] {
-                for j in 0..s.dims[1] {
-                    for l in 0..s.dims[2] {
-                        if s.get(i, j, l) {
-                            ws.set(i, j, l);
-                        }
-                    }
-                }
-            }
+            load(&mut ws, s);
             assert_eq!(c.all_scores(&mut ws), brute_force_scores(s, &k));
         }
         assert!(ws.max_rounding_error < 1e-9);
