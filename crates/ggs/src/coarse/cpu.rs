@@ -42,6 +42,10 @@ use std::time::{Duration, Instant};
 
 type C64 = Complex<f64>;
 
+/// [`CpuCorrelator::approx_best`] stops collecting candidate offsets when more than this many
+/// reach within twice the bound of the best so far (a flat correlation): too many to keep.
+const NEAR_CAP: usize = 4096;
+
 /// Round to the nearest integer (ties to even) for |v| < 2^51, without a libm call:
 /// adding and subtracting 1.5·2^52 leaves no fraction bits.
 #[inline(always)]
@@ -354,6 +358,10 @@ impl<T: Real> CpuCorrelator<T> {
         let reaches = |v: T, floor: f64| v.to_f64().is_none_or(|v| v >= floor || v.is_nan());
         let mut near = std::mem::take(&mut ws.near_best);
         near.clear();
+        // Pruned when it doubles (linear work in all), given up beyond NEAR_CAP (then no
+        // candidates: the re-scoring correlates in f64, which is always right).
+        let mut prune_at = 4 * MAX_CANDIDATES;
+        let mut gave_up = false;
         self.stage_inverse_rows(ws, |[ax, ay], first, second| {
             // A branch-free (vectorizable) maximum per row; the position only when it wins.
             let row_max = |r: &[T]| {
@@ -371,25 +379,32 @@ impl<T: Real> CpuCorrelator<T> {
                 offset = [ax, ay, az];
             }
             let floor = floor_of(best);
-            if reaches(m, floor) {
+            if !gave_up && reaches(m, floor) {
                 for (az, &v) in first.iter().chain(second).enumerate() {
                     if reaches(v, floor) {
                         near.push((v, [ax, ay, az]));
                     }
                 }
-                if near.len() > 4 * MAX_CANDIDATES {
+                if near.len() > prune_at {
                     near.retain(|&(v, _)| reaches(v, floor));
+                    gave_up = near.len() > NEAR_CAP;
+                    prune_at = (2 * near.len()).max(4 * MAX_CANDIDATES);
                 }
             }
         });
         let floor = floor_of(best);
-        let candidates = Candidates::of(
-            near.iter()
-                .filter(|&&(v, _)| reaches(v, floor))
-                .map(|&(_, a)| a)
-                .collect::<Vec<_>>()
-                .into_iter(),
-        );
+        let candidates = if gave_up {
+            Candidates::NONE
+        } else {
+            Candidates::of(
+                near.iter()
+                    .filter(|&&(v, _)| reaches(v, floor))
+                    .map(|&(_, a)| a)
+                    .collect::<Vec<_>>()
+                    .into_iter(),
+            )
+        };
+        near.clear();
         ws.near_best = near;
         ApproxBest {
             value: best.to_f64().unwrap_or(f64::NAN),
@@ -787,6 +802,27 @@ mod tests {
             kept += 1;
         }
         assert!(kept >= 6, "candidates kept in {kept} cases only");
+    }
+
+    /// A flat correlation (an empty source: every output ties at 0) keeps no candidates, so
+    /// a re-scoring correlates in f64; collecting stops early instead of growing with the grid.
+    #[test]
+    fn a_flat_correlation_keeps_no_candidates() {
+        let k = Occupancy {
+            dims: [20, 20, 20],
+            cells: (0..8000).map(|i| i % 7 == 0).collect(),
+        };
+        let src = Occupancy {
+            dims: [40, 40, 40],
+            cells: vec![false; 64000],
+        };
+        let geo = Geometry::new(k.dims, src.dims);
+        let c = CpuCorrelator::<f32>::new(geo, &k);
+        let mut ws = c.workspace();
+        load(&mut ws, &src);
+        let approx = c.approx_best(&mut ws);
+        assert_eq!(approx.candidates, Candidates::NONE);
+        assert!(ws.near_best.is_empty());
     }
 
     #[test]
