@@ -642,20 +642,17 @@ impl VerifyReady {
     }
 }
 
-/// Build what every refinement of `pair` with `r` starts from (trees, shape grids, the
-/// target's median k-th-neighbour distance); each is built on first use otherwise.
+/// Build what every refinement of `pair` with `r` starts from (trees, shape grids, and for a
+/// quantile correspondence distance the target's median k-th-neighbour distance, where its
+/// search starts); each is built on first use otherwise.
 fn prepare_pair(pair: &PreparedPair, r: &RefineConfig) {
-    rayon::join(
-        || {
-            pair.target.prepare();
-            pair.target.median_kth_distance();
-        },
-        || {
-            if r.method == crate::refine::Method::Gicp {
-                pair.source.prepare();
-            }
-        },
-    );
+    pair.prepare(r.method == crate::refine::Method::Gicp);
+    if matches!(
+        r.correspondence,
+        crate::refine::CorrespondenceDistance::Quantile(_)
+    ) {
+        pair.target.median_kth_distance();
+    }
 }
 
 fn verify_hypotheses(

@@ -344,25 +344,20 @@ pub fn refine_prepared(
     init: &Rigid,
     cfg: &RefineConfig,
 ) -> Result<RefineResult> {
-    check_config(pair, cfg)?;
-    let init_l = pair.to_local(init);
-    let mut r = crate::threads::in_pool(cfg.threads, || {
-        let t0 = Instant::now();
-        let started = start_run(pair, &init_l, cfg)?;
-        let setup_ms = t0.elapsed().as_secs_f64() * 1e3;
+    let mut r = with_started_run(pair, init, cfg, |started, init_l| {
         let t1 = Instant::now();
-        let run = started.iterate(pair, &init_l, cfg);
+        let run = started.iterate(pair, init_l, cfg);
         let iterate_ms = t1.elapsed().as_secs_f64() * 1e3;
         let report = quality(pair, &started.tsearch, &run, started.d_c, started.radius);
-        Ok::<_, GgsError>(RefineResult {
+        RefineResult {
             transform: run.transform,
             report,
             method: cfg.method,
-            setup_ms,
+            setup_ms: started.setup_ms,
             iterate_ms,
-            total_ms: t0.elapsed().as_secs_f64() * 1e3,
-        })
-    })??;
+            total_ms: started.setup_ms + t1.elapsed().as_secs_f64() * 1e3,
+        }
+    })?;
     r.transform = pair.to_global(&r.transform);
     Ok(r)
 }
@@ -382,16 +377,29 @@ pub fn refine_prepared_pose(
     init: &Rigid,
     cfg: &RefineConfig,
 ) -> Result<RefinedPose> {
-    check_config(pair, cfg)?;
-    let init_l = pair.to_local(init);
-    let run = crate::threads::in_pool(cfg.threads, || {
-        Ok::<_, GgsError>(start_run(pair, &init_l, cfg)?.iterate(pair, &init_l, cfg))
-    })??;
+    let run = with_started_run(pair, init, cfg, |started, init_l| {
+        started.iterate(pair, init_l, cfg)
+    })?;
     Ok(RefinedPose {
         transform: pair.to_global(&run.transform),
         iterations: run.iterations,
         converged: run.converged,
     })
+}
+
+/// `f(started run, init in the pair's frame)` on `cfg.threads`, once `cfg` is checked
+/// against the pair and the run from `init` is started ([`start_run`]).
+fn with_started_run<R: Send>(
+    pair: &PreparedPair,
+    init: &Rigid,
+    cfg: &RefineConfig,
+    f: impl FnOnce(&StartedRun, &Rigid) -> R + Send,
+) -> Result<R> {
+    check_config(pair, cfg)?;
+    let init_l = pair.to_local(init);
+    crate::threads::in_pool(cfg.threads, || {
+        Ok(f(&start_run(pair, &init_l, cfg)?, &init_l))
+    })?
 }
 
 /// The pair was prepared for the config's neighbours and ε, and the correspondence distance
@@ -441,6 +449,8 @@ fn correspondence_distance(pair: &PreparedPair, t: &Rigid, cfg: &RefineConfig) -
 /// every source point already sits on a target point), the target indexed for it, and the
 /// source's radius about its centroid (the translation step's unit).
 struct StartedRun<'a> {
+    /// Time to start it (trees, shapes, `d_c`, the index), in ms.
+    setup_ms: f64,
     d_c: f64,
     exact: bool,
     tsearch: RadiusSearch<'a>,
@@ -454,13 +464,7 @@ fn start_run<'a>(
     cfg: &RefineConfig,
 ) -> Result<StartedRun<'a>> {
     let t0 = Instant::now();
-    // Target normals serve every method: point-to-plane residuals, GICP covariances and the
-    // information matrix of the quality report. Source shapes for GICP only.
-    let gicp = cfg.method == Method::Gicp;
-    rayon::join(
-        || pair.target.prepare(),
-        || gicp.then(|| pair.source.prepare()),
-    );
+    pair.prepare(cfg.method == Method::Gicp);
     tracing::debug!(
         ms = t0.elapsed().as_secs_f64() * 1e3,
         "trees and shape grids"
@@ -487,6 +491,7 @@ fn start_run<'a>(
     }
     let tsearch = RadiusSearch::new(&pair.target.points, d_c, Some(pair.target.index()));
     Ok(StartedRun {
+        setup_ms: t0.elapsed().as_secs_f64() * 1e3,
         d_c,
         exact,
         tsearch,

@@ -148,6 +148,17 @@ impl PreparedPair {
         }
     }
 
+    /// Build the trees and shape grids a refinement uses (each is built on first use
+    /// otherwise): the target's always (normals serve every method: point-to-plane residuals,
+    /// GICP covariances, the quality report's information matrix), the source's when
+    /// `source_shapes` (GICP).
+    pub fn prepare(&self, source_shapes: bool) {
+        rayon::join(
+            || self.target.prepare(),
+            || source_shapes.then(|| self.source.prepare()),
+        );
+    }
+
     /// `T` of the clouds' frame in the pair's frame.
     pub fn to_local(&self, t: &Rigid) -> Rigid {
         let c = self.centre;
