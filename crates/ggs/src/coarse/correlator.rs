@@ -58,10 +58,7 @@ impl Candidates {
 
     /// `offsets` (x-major C order) when they are few enough and fit 16 bits, else
     /// [`Candidates::NONE`].
-    pub fn of(offsets: impl ExactSizeIterator<Item = [usize; 3]>) -> Candidates {
-        if offsets.len() > MAX_CANDIDATES {
-            return Candidates::NONE;
-        }
+    pub fn of(offsets: impl IntoIterator<Item = [usize; 3]>) -> Candidates {
         let mut c = Candidates {
             len: 0,
             at: [[0; 3]; MAX_CANDIDATES],
@@ -70,6 +67,9 @@ impl Candidates {
             let (Ok(x), Ok(y), Ok(z)) = (a[0].try_into(), a[1].try_into(), a[2].try_into()) else {
                 return Candidates::NONE;
             };
+            if c.len as usize == MAX_CANDIDATES {
+                return Candidates::NONE;
+            }
             c.at[c.len as usize] = [x, y, z];
             c.len += 1;
         }
@@ -117,7 +117,7 @@ impl From<BestOffset> for ApproxBest {
             value: b.match_score as f64,
             error_bound: 0.0,
             offset: b.offset,
-            candidates: Candidates::of([b.offset].into_iter()),
+            candidates: Candidates::of([b.offset]),
         }
     }
 }

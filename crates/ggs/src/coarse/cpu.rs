@@ -339,9 +339,10 @@ impl<T: Real> CpuCorrelator<T> {
         2.0 * (2.0 * eps + 4.0 * u) * occupied.max(0.0).sqrt() * self.kernel_peak
     }
 
-    /// Correlate in `T` and return the largest computed output with its error bound and the
-    /// offsets whose outputs reach within twice the bound of it ([`Candidates`]).
-    pub fn approx_best(&self, ws: &mut Workspace<T>) -> ApproxBest {
+    /// Correlate in `T` and return the largest computed output with its error bound and, when
+    /// `keep_candidates` (an exact re-scoring may follow), the offsets whose outputs reach
+    /// within twice the bound of it ([`Candidates`]).
+    pub fn approx_best(&self, ws: &mut Workspace<T>, keep_candidates: bool) -> ApproxBest {
         let mut best = T::neg_infinity();
         let mut offset = [0; 3];
         self.stage_forward(ws);
@@ -361,7 +362,7 @@ impl<T: Real> CpuCorrelator<T> {
         // Pruned when it doubles (linear work in all), given up beyond NEAR_CAP (then no
         // candidates: the re-scoring correlates in f64, which is always right).
         let mut prune_at = 4 * MAX_CANDIDATES;
-        let mut gave_up = false;
+        let mut gave_up = !keep_candidates;
         self.stage_inverse_rows(ws, |[ax, ay], first, second| {
             // A branch-free (vectorizable) maximum per row; the position only when it wins.
             let row_max = |r: &[T]| {
@@ -399,9 +400,7 @@ impl<T: Real> CpuCorrelator<T> {
             Candidates::of(
                 near.iter()
                     .filter(|&&(v, _)| reaches(v, floor))
-                    .map(|&(_, a)| a)
-                    .collect::<Vec<_>>()
-                    .into_iter(),
+                    .map(|&(_, a)| a),
             )
         };
         near.clear();
@@ -778,7 +777,15 @@ mod tests {
             let c = CpuCorrelator::<f32>::from_f64(&exact);
             let mut ws = c.workspace();
             load(&mut ws, &src);
-            let approx = c.approx_best(&mut ws);
+            let approx = c.approx_best(&mut ws, true);
+            // Without candidates (a ranking pass): the same best, no offsets kept.
+            load(&mut ws, &src);
+            let ranking = c.approx_best(&mut ws, false);
+            assert_eq!(
+                (ranking.value, ranking.offset),
+                (approx.value, approx.offset)
+            );
+            assert_eq!(ranking.candidates, Candidates::NONE);
             let Some(offsets) = approx.candidates.offsets() else {
                 continue;
             };
@@ -820,7 +827,7 @@ mod tests {
         let c = CpuCorrelator::<f32>::new(geo, &k);
         let mut ws = c.workspace();
         load(&mut ws, &src);
-        let approx = c.approx_best(&mut ws);
+        let approx = c.approx_best(&mut ws, true);
         assert_eq!(approx.candidates, Candidates::NONE);
         assert!(ws.near_best.is_empty());
     }
@@ -857,7 +864,7 @@ mod tests {
                 .fold(0.0, f64::max);
             assert!(worst <= bound, "case {case}: error {worst} > bound {bound}");
             assert!(bound < 0.05 * (5 * k.occupied()) as f64, "bound {bound}");
-            let approx = c.approx_best(&mut ws);
+            let approx = c.approx_best(&mut ws, true);
             let best = *exact.iter().max().unwrap() as f64;
             assert!(approx.lower() <= best && best <= approx.upper());
         }

@@ -139,8 +139,12 @@ impl Correlator for CpuPlan {
         indices: &[usize],
     ) -> Result<(Vec<ApproxBest>, StageTimes)> {
         match self {
-            CpuPlan::Approximate(c) | CpuPlan::Mixed(_, c, _) => {
-                run_pass(ctl, src, c, indices, |c, ws, _| c.approx_best(ws))
+            // Candidates only where an exact re-scoring can follow.
+            CpuPlan::Approximate(c) => {
+                run_pass(ctl, src, c, indices, |c, ws, _| c.approx_best(ws, false))
+            }
+            CpuPlan::Mixed(_, c, _) => {
+                run_pass(ctl, src, c, indices, |c, ws, _| c.approx_best(ws, true))
             }
             CpuPlan::Exact(_) => Ok(as_intervals(self.exact(ctl, src, indices)?)),
         }
