@@ -160,6 +160,11 @@ fn run_pass<T: Real, R: Send + Copy>(
     indices: &[usize],
     score: impl Fn(&CpuCorrelator<T>, &mut Workspace<T>, usize) -> R + Sync,
 ) -> Result<(Vec<R>, StageTimes)> {
+    // Nothing to score: no worker, no workspace (a re-scoring splits its rotations into two
+    // passes, one of them often empty).
+    if indices.is_empty() {
+        return Ok((Vec::new(), StageTimes::default()));
+    }
     let next = AtomicUsize::new(0);
     let done = AtomicUsize::new(0);
     let slots: Mutex<Vec<Option<R>>> = Mutex::new(vec![None; indices.len()]);
