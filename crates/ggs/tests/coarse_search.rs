@@ -84,9 +84,10 @@ fn check_recovery_in(
     };
     let r = coarse_register(&source, &target, set, &cfg).unwrap();
     let extent = source.aabb().unwrap().diagonal();
-    // A later duplicate of an earlier rotation (limited15 keeps 3 float-noise ones) is
-    // recovered as the earlier index with the same matrix.
-    let same_matrix = rre(&r.transform(), &truth) < 1e-6;
+    // A later duplicate of an earlier rotation (limited15 keeps 3 float-noise ones, hopf15
+    // some 1.7e-6° apart, where the angle from the trace is at the resolution of acos) is
+    // recovered as the earlier index with the same voxelization.
+    let same_matrix = rre(&r.transform(), &truth) < 1e-4;
     assert!(
         r.winner().rotation_index == k || (same_matrix && r.winner().rotation_index < k),
         "seed {seed}: rotation {k} recovered as {}",
