@@ -249,20 +249,15 @@ impl<T: Real> CpuCorrelator<T> {
 
     /// Fresh buffers for one worker.
     pub fn workspace(&self) -> Workspace<T> {
-        let [lx, ly, lz] = self.geo.fft_len;
-        let kz = self.geo.kz();
-        let ax = self.geo.source_max[0].max(self.geo.kernel_dims[0]);
-        let ay = self.geo.source_max[1].max(self.geo.kernel_dims[1]);
-        let zero = Complex::<T>::default();
-        Workspace {
-            real: vec![T::zero(); ax * ay * lz],
-            ay,
-            zspec: vec![zero; ax * ay * kz],
-            grid: vec![zero; ly * kz * lx],
-            slab: vec![zero; X_BLOCK * kz * ly],
-            zrow: vec![zero; kz],
-            rrow: vec![T::zero(); lz],
-            scratch: vec![zero; self.scratch_len],
+        let mut ws = Workspace {
+            real: Vec::new(),
+            ay: 0,
+            zspec: Vec::new(),
+            grid: Vec::new(),
+            slab: Vec::new(),
+            zrow: Vec::new(),
+            rrow: Vec::new(),
+            scratch: Vec::new(),
             near_best: Vec::new(),
             occupied_estimate: 0.0,
             ns: [0; 3],
@@ -270,7 +265,31 @@ impl<T: Real> CpuCorrelator<T> {
             t_product: Duration::ZERO,
             t_inverse: Duration::ZERO,
             max_rounding_error: 0.0,
-        }
+        };
+        self.fit(&mut ws);
+        ws
+    }
+
+    /// Size a worker's buffers for this correlator's geometry, keeping their allocations
+    /// (a pass over rotations planned at several FFT sizes moves one workspace from size to
+    /// size) and the stage times. Every buffer is written before it is read for each rotation
+    /// ([`Workspace::begin`] clears the source rows a grid occupies), so nothing stale is
+    /// read.
+    pub fn fit(&self, ws: &mut Workspace<T>) {
+        let [lx, ly, lz] = self.geo.fft_len;
+        let kz = self.geo.kz();
+        let ax = self.geo.source_max[0].max(self.geo.kernel_dims[0]);
+        let ay = self.geo.source_max[1].max(self.geo.kernel_dims[1]);
+        let zero = Complex::<T>::default();
+        ws.real.resize(ax * ay * lz, T::zero());
+        ws.ay = ay;
+        ws.zspec.resize(ax * ay * kz, zero);
+        ws.grid.resize(ly * kz * lx, zero);
+        ws.slab.resize(X_BLOCK * kz * ly, zero);
+        ws.zrow.resize(kz, zero);
+        ws.rrow.resize(lz, T::zero());
+        ws.scratch.resize(self.scratch_len, zero);
+        ws.ns = [0; 3];
     }
 
     /// r2c along z and FFT along y of the workspace's current grid into `ws.grid`

@@ -63,6 +63,21 @@ impl Geometry {
         }
     }
 
+    /// [`Geometry::new`] at the FFT lengths `fft_len` instead of the ones `source_max` needs:
+    /// a smaller plan beside a full one ([`super::sized`]). `source_max` stays the full
+    /// plan's (it sizes a workspace's rows); every source correlated at this geometry must
+    /// fit `fft_len` (`L_d ≥ max(NS_d, NR_d) + floor(NR_d/2)`).
+    pub fn with_fft_len(
+        kernel_dims: [usize; 3],
+        source_max: [usize; 3],
+        fft_len: [usize; 3],
+    ) -> Self {
+        Geometry {
+            fft_len,
+            ..Self::new(kernel_dims, source_max)
+        }
+    }
+
     /// Nominal floating-point operations of one correlation for a source grid of dims `ns`,
     /// as the transforms are pruned here: `5·L·log2 L` per complex transform of length `L`,
     /// `2.5·L·log2 L` per real one (the usual FFT convention: the count of a radix-2

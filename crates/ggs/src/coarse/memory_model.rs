@@ -1,6 +1,7 @@
 //! What the large buffers of a search cost, and the error for a search that does not fit.
 
 use super::geometry::Geometry;
+use super::sized::SizedPlans;
 use super::voxel;
 use crate::error::GgsError;
 use crate::memory;
@@ -16,7 +17,7 @@ pub(super) struct MemoryModel {
 }
 
 impl MemoryModel {
-    /// Kernel spectra (f32 and f64), one workspace per thread (the f64 one, the larger of
+    /// Kernel spectra (f32 and f64, and the smaller f32 plans of [`SizedPlans`]), one workspace per thread (the f64 one, the larger of
     /// the two a worker holds at a time), kernel occupancy and the centred points (as
     /// triples and as coordinate arrays).
     pub fn bytes(&self, geo: &Geometry) -> u64 {
@@ -26,6 +27,7 @@ impl MemoryModel {
             .fold(1u64, |a, &d| a.saturating_mul(d as u64));
         geo.kernel_bytes(4)
             .saturating_add(geo.kernel_bytes(8))
+            .saturating_add(SizedPlans::bytes_bound(geo))
             .saturating_add((self.threads as u64).saturating_mul(geo.workspace_bytes(8)))
             .saturating_add(cells)
             .saturating_add((self.points as u64).saturating_mul(48))

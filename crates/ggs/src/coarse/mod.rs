@@ -46,6 +46,7 @@ mod register;
 pub mod result;
 pub mod rotated;
 pub mod selection;
+pub mod sized;
 pub mod source;
 pub mod voxel;
 

@@ -13,6 +13,7 @@ use super::correlator::{
 };
 use super::cpu::{CpuCorrelator, Real, Workspace};
 use super::geometry::Geometry;
+use super::sized::SizedPlans;
 use super::voxel::Occupancy;
 use crate::error::{GgsError, Result};
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
@@ -28,8 +29,14 @@ pub struct CpuBackend;
 #[allow(clippy::large_enum_variant)]
 pub enum CpuPlan {
     Approximate(CpuCorrelator<f32>),
-    /// The kernel is kept for exact scores at a few candidate offsets.
-    Mixed(CpuCorrelator<f64>, CpuCorrelator<f32>, Occupancy),
+    /// The kernel is kept for exact scores at a few candidate offsets and for the smaller
+    /// approximate plans ([`SizedPlans`]).
+    Mixed(
+        CpuCorrelator<f64>,
+        CpuCorrelator<f32>,
+        Occupancy,
+        SizedPlans,
+    ),
     Exact(CpuCorrelator<f64>),
 }
 
@@ -45,7 +52,7 @@ impl Backend for CpuBackend {
             Scores::Mixed => {
                 let exact = CpuCorrelator::<f64>::new(geo, kernel);
                 let approx = CpuCorrelator::<f32>::from_f64(&exact);
-                CpuPlan::Mixed(exact, approx, kernel.clone())
+                CpuPlan::Mixed(exact, approx, kernel.clone(), SizedPlans::default())
             }
             Scores::Exact => CpuPlan::Exact(CpuCorrelator::new(geo, kernel)),
         }))
@@ -56,7 +63,7 @@ impl CpuPlan {
     /// `(|K|, n_k, geometry)`, the same in every correlator of the plan.
     fn kernel(&self) -> (i64, i64, &Geometry) {
         match self {
-            CpuPlan::Approximate(c) | CpuPlan::Mixed(_, c, _) => {
+            CpuPlan::Approximate(c) | CpuPlan::Mixed(_, c, _, _) => {
                 (c.kernel_cells, c.kernel_occupied, c.geometry())
             }
             CpuPlan::Exact(c) => (c.kernel_cells, c.kernel_occupied, c.geometry()),
@@ -84,7 +91,7 @@ impl Correlator for CpuPlan {
         indices: &[usize],
     ) -> Result<(Vec<BestOffset>, StageTimes)> {
         match self {
-            CpuPlan::Mixed(c, _, _) | CpuPlan::Exact(c) => {
+            CpuPlan::Mixed(c, _, _, _) | CpuPlan::Exact(c) => {
                 run_pass(ctl, src, c, indices, |c, ws, _| c.best_offset(ws))
             }
             CpuPlan::Approximate(_) => Err(GgsError::param(
@@ -103,7 +110,7 @@ impl Correlator for CpuPlan {
         indices: &[usize],
         candidates: &[Candidates],
     ) -> Result<(Vec<BestOffset>, StageTimes)> {
-        let CpuPlan::Mixed(_, approx, kernel) = self else {
+        let CpuPlan::Mixed(_, approx, kernel, _) = self else {
             return self.exact(ctl, src, indices);
         };
         let (kept, again): (Vec<usize>, Vec<usize>) =
@@ -143,8 +150,11 @@ impl Correlator for CpuPlan {
             CpuPlan::Approximate(c) => {
                 run_pass(ctl, src, c, indices, |c, ws, _| c.approx_best(ws, false))
             }
-            CpuPlan::Mixed(_, c, _) => {
-                run_pass(ctl, src, c, indices, |c, ws, _| c.approx_best(ws, true))
+            CpuPlan::Mixed(_, full, kernel, sized) => {
+                let a = sized.assign(ctl.pool, full, kernel, src.boxes, indices);
+                run_sized(ctl, src, &a.plans(full), &a.plan_of, indices, |c, ws, _| {
+                    c.approx_best(ws, true)
+                })
             }
             CpuPlan::Exact(_) => Ok(as_intervals(self.exact(ctl, src, indices)?)),
         }
@@ -160,11 +170,27 @@ fn run_pass<T: Real, R: Send + Copy>(
     indices: &[usize],
     score: impl Fn(&CpuCorrelator<T>, &mut Workspace<T>, usize) -> R + Sync,
 ) -> Result<(Vec<R>, StageTimes)> {
+    run_sized(ctl, src, &[corr], &vec![0; indices.len()], indices, score)
+}
+
+/// [`run_pass`] with rotation `indices[i]` correlated by `plans[plan_of[i]]`. Rotations are
+/// handed out plan by plan, so a worker re-sizes its workspace once per plan
+/// ([`CpuCorrelator::fit`]).
+fn run_sized<T: Real, R: Send + Copy>(
+    ctl: &PassControl<'_>,
+    src: &RotatedSources<'_>,
+    plans: &[&CpuCorrelator<T>],
+    plan_of: &[usize],
+    indices: &[usize],
+    score: impl Fn(&CpuCorrelator<T>, &mut Workspace<T>, usize) -> R + Sync,
+) -> Result<(Vec<R>, StageTimes)> {
     // Nothing to score: no worker, no workspace (a re-scoring splits its rotations into two
     // passes, one of them often empty).
     if indices.is_empty() {
         return Ok((Vec::new(), StageTimes::default()));
     }
+    let mut order: Vec<usize> = (0..indices.len()).collect();
+    order.sort_by_key(|&i| plan_of[i]);
     let next = AtomicUsize::new(0);
     let done = AtomicUsize::new(0);
     let slots: Mutex<Vec<Option<R>>> = Mutex::new(vec![None; indices.len()]);
@@ -175,7 +201,8 @@ fn run_pass<T: Real, R: Send + Copy>(
     ctl.pool.scope(|scope| {
         for _ in 0..workers {
             scope.spawn(|_| {
-                let mut ws = corr.workspace();
+                let mut plan = plan_of[order[0]];
+                let mut ws = plans[plan].workspace();
                 let mut t_vox = Duration::ZERO;
                 let mut local: Vec<(usize, R)> = Vec::new();
                 loop {
@@ -183,9 +210,14 @@ fn run_pass<T: Real, R: Send + Copy>(
                         cancelled.store(true, Ordering::Relaxed);
                         break;
                     }
-                    let slot = next.fetch_add(1, Ordering::Relaxed);
-                    if slot >= indices.len() {
+                    let at = next.fetch_add(1, Ordering::Relaxed);
+                    if at >= indices.len() {
                         break;
+                    }
+                    let slot = order[at];
+                    if plan_of[slot] != plan {
+                        plan = plan_of[slot];
+                        plans[plan].fit(&mut ws);
                     }
                     let k = indices[slot];
                     let tv = Instant::now();
@@ -193,7 +225,7 @@ fn run_pass<T: Real, R: Send + Copy>(
                     ws.begin(b.dims);
                     src.cloud.voxelize(&src.rows[k], &b.min, s, ws.grid_mut());
                     t_vox += tv.elapsed();
-                    local.push((slot, score(corr, &mut ws, slot)));
+                    local.push((slot, score(plans[plan], &mut ws, slot)));
                     let n = done.fetch_add(1, Ordering::Relaxed) + 1;
                     if let Some(p) = ctl.progress {
                         p(n);
@@ -227,8 +259,8 @@ fn run_pass<T: Real, R: Send + Copy>(
     let mut times = stats.into_inner().expect("workers finished");
     times.flops = indices
         .iter()
-        .filter_map(|&k| src.boxes[k])
-        .map(|b| corr.geometry().flops(b.dims))
+        .zip(plan_of)
+        .filter_map(|(&k, &p)| Some(plans[p].geometry().flops(src.boxes[k]?.dims)))
         .sum();
     let results = slots
         .into_inner()
