@@ -235,24 +235,28 @@ impl RotatableCloud {
             let xs = &self.xs[i..i + LANES];
             let ys = &self.ys[i..i + LANES];
             let zs = &self.zs[i..i + LANES];
-            let mut index = [0u32; LANES];
-            let mut near_boundary = [false; LANES];
-            for l in 0..LANES {
-                let p = [xs[l], ys[l], zs[l]];
-                let mut cells = [0.0f64; 3];
-                let mut near = false;
-                for d in 0..3 {
-                    let v = (dot_row(&r[d], &p) - min[d]) * inv;
+            // One axis at a time over the block (straight vector code), each coordinate by
+            // the expression of `dot_row`.
+            let mut flat = [0.0f64; LANES];
+            let mut near = [false; LANES];
+            for (d, scale) in [(0, fsx), (1, fsy), (2, 1.0)] {
+                let row = &r[d];
+                for l in 0..LANES {
+                    let dot = row[0] * xs[l] + row[1] * ys[l] + row[2] * zs[l];
+                    let v = (dot - min[d]) * inv;
                     let nearest = (v + MAGIC) - MAGIC;
                     let floor = if nearest > v { nearest - 1.0 } else { nearest };
                     let f = v - floor;
                     let tol = 1e-9 + 8.0 * f64::EPSILON * v;
-                    near |= !(f > tol && f < 1.0 - tol);
-                    cells[d] = floor;
+                    near[l] |= !(f > tol && f < 1.0 - tol);
+                    flat[l] += floor * scale;
                 }
-                index[l] = (cells[0] * fsx + cells[1] * fsy + cells[2]) as u32;
-                near_boundary[l] = near;
             }
+            let mut index = [0u32; LANES];
+            for l in 0..LANES {
+                index[l] = flat[l] as u32;
+            }
+            let near_boundary = near;
             if near_boundary.iter().any(|&b| b) {
                 for l in 0..LANES {
                     self.mark_exact(i + l, r, min, s, inv, grid, sx, sy);
@@ -322,6 +326,47 @@ mod tests {
                 }
                 assert_eq!(rc.range(&row), (lo, hi));
             }
+        }
+    }
+
+    #[test]
+    fn voxelize_marks_the_cells_of_the_exact_quotient() {
+        // Random points and points on cell boundaries (the identity and axis flips put
+        // them exactly on a boundary, where only the exact quotient decides).
+        let s = 0.125;
+        let mut pts = lcg_cloud(3001, 5).iter().collect::<Vec<_>>();
+        pts.extend((0..40).map(|i| [i as f64 * s, (i % 7) as f64 * s, 7.0 + (i % 5) as f64 * s]));
+        let rc = RotatableCloud::new(&Cloud::new(pts));
+        let set = RotationSet::named("limited15").unwrap();
+        let mut matrices: Vec<_> = set.matrices.iter().step_by(97).copied().collect();
+        matrices.push(nalgebra::Matrix3::identity());
+        matrices.push(nalgebra::Matrix3::from_diagonal(&nalgebra::Vector3::new(
+            -1.0, 1.0, -1.0,
+        )));
+        for m in matrices {
+            let r: [[f64; 3]; 3] = std::array::from_fn(|d| [m[(d, 0)], m[(d, 1)], m[(d, 2)]]);
+            let ranges: [(f64, f64); 3] = std::array::from_fn(|d| rc.range(&r[d]));
+            let min = ranges.map(|x| x.0);
+            let dims: [usize; 3] =
+                std::array::from_fn(|d| super::super::voxel::cell(ranges[d].1 - min[d], s) + 1);
+            let mut cells = vec![0.0f32; dims.iter().product()];
+            let (sx, sy) = (dims[1] * dims[2], dims[2]);
+            rc.voxelize(
+                &r,
+                &min,
+                s,
+                GridView {
+                    cells: &mut cells,
+                    sx,
+                    sy,
+                },
+            );
+            let mut want = vec![0.0f32; cells.len()];
+            for p in &rc.points {
+                let c = |d: usize| super::super::voxel::cell(dot_row(&r[d], p) - min[d], s);
+                want[c(0) * sx + c(1) * sy + c(2)] = 1.0;
+            }
+            assert_eq!(cells, want);
         }
     }
 
