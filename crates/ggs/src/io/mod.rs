@@ -291,8 +291,9 @@ fn detect<R: BufRead>(path: &Path, r: &mut R) -> Result<Format> {
     })
 }
 
-fn read_all<R: Read>(path: &Path, mut r: R) -> Result<Vec<u8>> {
-    let mut bytes = Vec::new();
+/// The rest of `r`, in one allocation of the file's `len` bytes.
+fn read_all<R: Read>(path: &Path, mut r: R, len: u64) -> Result<Vec<u8>> {
+    let mut bytes = Vec::with_capacity(usize::try_from(len).unwrap_or(0));
     r.read_to_end(&mut bytes)
         .map_err(|e| GgsError::io(path, e))?;
     Ok(bytes)
@@ -333,19 +334,21 @@ fn read_points<S: PointStore, R: BufRead + Seek + Send + Sync + 'static>(
     };
     // The streamed formats fill the store as they decode; the others give a list.
     let points = match fmt {
-        Format::Ply if opts.mesh_samples.is_some() => {
-            sampled(path, opts, ply::parse_ply_mesh(path, &read_all(path, r)?)?)?
-        }
+        Format::Ply if opts.mesh_samples.is_some() => sampled(
+            path,
+            opts,
+            ply::parse_ply_mesh(path, &read_all(path, r, len)?)?,
+        )?,
         Format::Ply => return Ok((fmt, ply::read_ply_into::<S, R>(path, &mut r, Some(len))?)),
         Format::Pcd => return Ok((fmt, pcd::read_pcd_into::<S, R>(path, &mut r, Some(len))?)),
         Format::KittiBin => return Ok((fmt, kitti::read_kitti_into::<S, R>(path, &mut r, len)?)),
         Format::Las => return Ok((fmt, las::read_las_into::<S, R>(path, r)?)),
         Format::E57 => e57::read_e57(path, r, opts.e57)?,
         Format::Npz => npz::read_npz_points(path, r, opts.npz_array.as_deref())?,
-        Format::Obj => sampled(path, opts, mesh::parse_obj(path, &read_all(path, r)?)?)?,
-        Format::Stl => sampled(path, opts, mesh::parse_stl(path, &read_all(path, r)?)?)?,
-        Format::Text => xyz::parse_xyz(path, &read_all(path, r)?)?,
-        Format::Npy => npy::points_of(path, &npy::parse_npy(path, &read_all(path, r)?)?)?,
+        Format::Obj => sampled(path, opts, mesh::parse_obj(path, &read_all(path, r, len)?)?)?,
+        Format::Stl => sampled(path, opts, mesh::parse_stl(path, &read_all(path, r, len)?)?)?,
+        Format::Text => xyz::parse_xyz(path, &read_all(path, r, len)?)?,
+        Format::Npy => npy::points_of(path, &npy::parse_npy(path, &read_all(path, r, len)?)?)?,
     };
     Ok((fmt, S::from_vec(points)))
 }

@@ -58,8 +58,7 @@ pub fn read_pcd_into<S: PointStore, R: BufRead + Send>(
     })?;
     let h = parse_header(path, &header)?;
     if h.data_kind != "binary" {
-        r.read_to_end(&mut header)
-            .map_err(|e| GgsError::io(path, e))?;
+        stream::read_rest(path, r, &mut header, file_len)?;
         return Ok(S::from_vec(parse_pcd(path, &header)?));
     }
     let (field_off, stride) = row_layout(&h.fields);

@@ -68,8 +68,7 @@ fn read_ply_chunked<S: PointStore, R: BufRead + Send>(
     let fixed =
         h.encoding != Encoding::Ascii && h.elements[..=vi].iter().all(|e| row_size(e).is_some());
     if !fixed {
-        r.read_to_end(&mut header)
-            .map_err(|e| GgsError::io(path, e))?;
+        stream::read_rest(path, r, &mut header, file_len)?;
         return Ok(S::from_vec(parse_ply(path, &header)?));
     }
     let mut pos = h.data_start as u64;
