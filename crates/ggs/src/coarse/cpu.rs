@@ -362,11 +362,16 @@ impl<T: Real> CpuCorrelator<T> {
     /// `keep_candidates` (an exact re-scoring may follow), the offsets whose outputs reach
     /// within twice the bound of it ([`Candidates`]).
     pub fn approx_best(&self, ws: &mut Workspace<T>, keep_candidates: bool) -> ApproxBest {
-        let mut best = T::neg_infinity();
-        let mut offset = [0; 3];
         self.stage_forward(ws);
         self.stage_product(ws);
         let bound = self.error_bound(ws.occupied_estimate);
+        self.approx_scan(ws, bound, keep_candidates)
+    }
+
+    /// The inverse stage of [`Self::approx_best`], given the outputs' error bound.
+    fn approx_scan(&self, ws: &mut Workspace<T>, bound: f64, keep_candidates: bool) -> ApproxBest {
+        let mut best = T::neg_infinity();
+        let mut offset = [0; 3];
         // Outputs are kept while they reach `best − 2·bound` for the best so far (which only
         // rises, so the final list holds the final one's). Compared in f64, where every T
         // output is exact, with the floor lowered by more than its rounding: keeping more is
@@ -429,6 +434,42 @@ impl<T: Real> CpuCorrelator<T> {
             error_bound: bound,
             offset,
             candidates,
+        }
+    }
+
+    /// The best offset by exact match score when the outputs' error bound is below ½: each
+    /// output then rounds to the integer it approximates, so the largest rounded output is
+    /// the exact maximum and its first offset (x-major C order) the exact argmax, whatever
+    /// the FFT's rounding (plan size, SIMD width). Returned with a bound of 0. With a larger
+    /// bound, [`Self::approx_best`] without candidates.
+    pub fn rounded_best(&self, ws: &mut Workspace<T>) -> ApproxBest {
+        self.stage_forward(ws);
+        self.stage_product(ws);
+        let bound = self.error_bound(ws.occupied_estimate);
+        if bound.is_nan() || bound >= 0.5 {
+            return self.approx_scan(ws, bound, false);
+        }
+        let round = |v: T| round_small(v.to_f64().unwrap_or(f64::NAN));
+        let mut best = f64::NEG_INFINITY;
+        let mut offset = [0; 3];
+        self.stage_inverse_rows(ws, |[ax, ay], first, second| {
+            let row_max = |r: &[T]| {
+                r.iter()
+                    .fold(T::neg_infinity(), |m, &v| if v > m { v } else { m })
+            };
+            // Rounding is monotonic: the rounded maximum is the maximum of the rounded.
+            let m = round(row_max(first).max(row_max(second)));
+            if m > best {
+                best = m;
+                let az = first.iter().chain(second).position(|&v| round(v) == m);
+                offset = [ax, ay, az.unwrap_or(0)];
+            }
+        });
+        ApproxBest {
+            value: best,
+            error_bound: 0.0,
+            offset,
+            candidates: Candidates::NONE,
         }
     }
 
@@ -832,6 +873,51 @@ mod tests {
 
     /// A flat correlation (an empty source: every output ties at 0) keeps no candidates, so
     /// a re-scoring correlates in f64; collecting stops early instead of growing with the grid.
+    #[test]
+    fn the_rounded_best_is_the_exact_best_at_any_plan_size() {
+        let mut next = crate::test_rng::uniform(91);
+        let mut exact_cases = 0;
+        for case in 0..10 {
+            let n = 4 + 2 * case;
+            let (kd, sd) = ([n + 1, n, n + 2], [n, n + 2, n - 1]);
+            let occ = |dims: [usize; 3], p: f64, next: &mut dyn FnMut() -> f64| Occupancy {
+                dims,
+                cells: (0..dims.iter().product::<usize>())
+                    .map(|_| next() < p)
+                    .collect(),
+            };
+            // Sparse sources tie often: the first offset of the best score must win.
+            let (k, src) = (occ(kd, 0.15, &mut next), occ(sd, 0.05, &mut next));
+            let geo = Geometry::new(k.dims, src.dims);
+            let exact = CpuCorrelator::<f64>::new(geo, &k);
+            let mut ws64 = exact.workspace();
+            load(&mut ws64, &src);
+            let want = exact.best_offset(&mut ws64);
+            // The plan the source needs, and one planned for a source twice as large.
+            let big = Geometry::new(k.dims, sd.map(|d| 2 * d));
+            let larger = Geometry::with_fft_len(k.dims, big.source_max, big.fft_len);
+            for g in [geo, larger] {
+                let c = CpuCorrelator::<f32>::new(g, &k);
+                let mut ws = c.workspace();
+                load(&mut ws, &src);
+                let got = c.rounded_best(&mut ws);
+                if got.error_bound > 0.0 {
+                    // A bound of ½ or more: the approximate best, within its bound.
+                    assert!(got.error_bound >= 0.5);
+                    assert!((got.value - want.match_score as f64).abs() <= got.error_bound);
+                    continue;
+                }
+                exact_cases += 1;
+                assert_eq!(got.value, want.match_score as f64, "case {case}");
+                assert_eq!(got.offset, want.offset, "case {case}");
+            }
+        }
+        assert!(
+            exact_cases >= 12,
+            "most cases have a bound below ½ ({exact_cases})"
+        );
+    }
+
     #[test]
     fn a_flat_correlation_keeps_no_candidates() {
         let k = Occupancy {

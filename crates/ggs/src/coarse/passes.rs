@@ -28,7 +28,9 @@ pub struct CpuBackend;
 // One plan per search level, boxed behind `dyn Correlator`: the size difference costs nothing.
 #[allow(clippy::large_enum_variant)]
 pub enum CpuPlan {
-    Approximate(CpuCorrelator<f32>),
+    /// Rotations are ranked by [`CpuCorrelator::rounded_best`], each at the smallest plan
+    /// that holds it (the ranking does not depend on the plan).
+    Approximate(CpuCorrelator<f32>, Occupancy, SizedPlans),
     /// The kernel is kept for exact scores at a few candidate offsets and for the smaller
     /// approximate plans ([`SizedPlans`]).
     Mixed(
@@ -48,7 +50,11 @@ impl Backend for CpuBackend {
         scores: Scores,
     ) -> Result<Box<dyn Correlator>> {
         Ok(Box::new(match scores {
-            Scores::Approximate => CpuPlan::Approximate(CpuCorrelator::new(geo, kernel)),
+            Scores::Approximate => CpuPlan::Approximate(
+                CpuCorrelator::new(geo, kernel),
+                kernel.clone(),
+                SizedPlans::default(),
+            ),
             Scores::Mixed => {
                 let exact = CpuCorrelator::<f64>::new(geo, kernel);
                 let approx = CpuCorrelator::<f32>::from_f64(&exact);
@@ -63,7 +69,7 @@ impl CpuPlan {
     /// `(|K|, n_k, geometry)`, the same in every correlator of the plan.
     fn kernel(&self) -> (i64, i64, &Geometry) {
         match self {
-            CpuPlan::Approximate(c) | CpuPlan::Mixed(_, c, _, _) => {
+            CpuPlan::Approximate(c, _, _) | CpuPlan::Mixed(_, c, _, _) => {
                 (c.kernel_cells, c.kernel_occupied, c.geometry())
             }
             CpuPlan::Exact(c) => (c.kernel_cells, c.kernel_occupied, c.geometry()),
@@ -94,7 +100,7 @@ impl Correlator for CpuPlan {
             CpuPlan::Mixed(c, _, _, _) | CpuPlan::Exact(c) => {
                 run_pass(ctl, src, c, indices, |c, ws, _| c.best_offset(ws))
             }
-            CpuPlan::Approximate(_) => Err(GgsError::param(
+            CpuPlan::Approximate(..) => Err(GgsError::param(
                 "scores",
                 "this correlator was planned for approximate scores only",
             )),
@@ -146,9 +152,11 @@ impl Correlator for CpuPlan {
         indices: &[usize],
     ) -> Result<(Vec<ApproxBest>, StageTimes)> {
         match self {
-            // Candidates only where an exact re-scoring can follow.
-            CpuPlan::Approximate(c) => {
-                run_pass(ctl, src, c, indices, |c, ws, _| c.approx_best(ws, false))
+            CpuPlan::Approximate(full, kernel, sized) => {
+                let a = sized.assign(ctl.pool, full, kernel, src.boxes, indices);
+                run_sized(ctl, src, &a.plans(full), &a.plan_of, indices, |c, ws, _| {
+                    c.rounded_best(ws)
+                })
             }
             CpuPlan::Mixed(_, full, kernel, sized) => {
                 let a = sized.assign(ctl.pool, full, kernel, src.boxes, indices);
