@@ -199,84 +199,110 @@ fn run_sized<T: Real, R: Send + Copy>(
     }
     let mut order: Vec<usize> = (0..indices.len()).collect();
     order.sort_by_key(|&i| plan_of[i]);
-    let next = AtomicUsize::new(0);
-    let done = AtomicUsize::new(0);
-    let slots: Mutex<Vec<Option<R>>> = Mutex::new(vec![None; indices.len()]);
-    let stats: Mutex<StageTimes> = Mutex::new(StageTimes::default());
-    let cancelled = AtomicBool::new(false);
-    let s = src.voxel;
+    let pass = Pass {
+        ctl,
+        src,
+        plans,
+        plan_of,
+        indices,
+        order,
+        next: AtomicUsize::new(0),
+        done: AtomicUsize::new(0),
+        slots: Mutex::new(vec![None; indices.len()]),
+        stats: Mutex::new(StageTimes::default()),
+        cancelled: AtomicBool::new(false),
+    };
     let workers = ctl.threads.min(indices.len()).max(1);
     ctl.pool.scope(|scope| {
         for _ in 0..workers {
-            scope.spawn(|_| {
-                let mut plan = plan_of[order[0]];
-                let mut ws = plans[plan].workspace();
-                let mut t_vox = Duration::ZERO;
-                let mut local: Vec<(usize, R)> = Vec::new();
-                loop {
-                    if ctl.cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
-                        cancelled.store(true, Ordering::Relaxed);
-                        break;
-                    }
-                    let at = next.fetch_add(1, Ordering::Relaxed);
-                    if at >= indices.len() {
-                        break;
-                    }
-                    let slot = order[at];
-                    if plan_of[slot] != plan {
-                        plan = plan_of[slot];
-                        plans[plan].fit(&mut ws);
-                    }
-                    let k = indices[slot];
-                    let tv = Instant::now();
-                    let b = src.boxes[k].expect("extents computed for every scored rotation");
-                    ws.begin(b.dims);
-                    src.cloud.voxelize(&src.rows[k], &b.min, s, ws.grid_mut());
-                    t_vox += tv.elapsed();
-                    local.push((slot, score(plans[plan], &mut ws, slot)));
-                    let n = done.fetch_add(1, Ordering::Relaxed) + 1;
-                    if let Some(p) = ctl.progress {
-                        p(n);
-                    }
-                }
-                let mut sl = slots
-                    .lock()
-                    .expect("no worker panics while holding the lock");
-                for (slot, r) in local {
-                    sl[slot] = Some(r);
-                }
-                let mut st = stats
-                    .lock()
-                    .expect("no worker panics while holding the lock");
-                st.add(&StageTimes {
-                    voxelize: t_vox,
-                    forward: ws.t_forward,
-                    product: ws.t_product,
-                    inverse: ws.t_inverse,
-                    max_rounding_error: ws.max_rounding_error,
-                    flops: 0.0,
-                });
-            });
+            scope.spawn(|_| pass.work(&score));
         }
     });
-    if cancelled.load(Ordering::Relaxed) {
+    if pass.cancelled.load(Ordering::Relaxed) {
         return Err(GgsError::Cancelled);
     }
     // The FLOPs summed in the order of `indices`, not of the workers: the same bits at any
     // thread count.
-    let mut times = stats.into_inner().expect("workers finished");
+    let mut times = pass.stats.into_inner().expect("workers finished");
     times.flops = indices
         .iter()
         .zip(plan_of)
         .filter_map(|(&k, &p)| Some(plans[p].geometry().flops(src.boxes[k]?.dims)))
         .sum();
-    let results = slots
+    let results = pass
+        .slots
         .into_inner()
         .expect("workers finished")
         .into_iter()
         .map(|r| r.expect("every rotation scored"))
         .collect();
     Ok((results, times))
+}
+
+/// One pass's work list and what its workers share: rotations go out in `order` by an atomic
+/// counter and every result lands in the slot of its rotation, whichever worker scored it.
+struct Pass<'p, 'c, 's, T: Real, R> {
+    ctl: &'p PassControl<'c>,
+    src: &'p RotatedSources<'s>,
+    plans: &'p [&'p CpuCorrelator<T>],
+    plan_of: &'p [usize],
+    indices: &'p [usize],
+    order: Vec<usize>,
+    next: AtomicUsize,
+    done: AtomicUsize,
+    slots: Mutex<Vec<Option<R>>>,
+    stats: Mutex<StageTimes>,
+    cancelled: AtomicBool,
+}
+
+impl<T: Real, R: Send + Copy> Pass<'_, '_, '_, T, R> {
+    /// One worker: take rotations until none is left (or the pass is cancelled), voxelize
+    /// each into its own workspace and score it; then file the results and stage times.
+    fn work(&self, score: &(impl Fn(&CpuCorrelator<T>, &mut Workspace<T>, usize) -> R + Sync)) {
+        let (src, s) = (self.src, self.src.voxel);
+        let mut plan = self.plan_of[self.order[0]];
+        let mut ws = self.plans[plan].workspace();
+        let mut t_vox = Duration::ZERO;
+        let mut local: Vec<(usize, R)> = Vec::new();
+        loop {
+            if self.ctl.cancel.is_some_and(|c| c.load(Ordering::Relaxed)) {
+                self.cancelled.store(true, Ordering::Relaxed);
+                break;
+            }
+            let at = self.next.fetch_add(1, Ordering::Relaxed);
+            let Some(&slot) = self.order.get(at) else {
+                break;
+            };
+            if self.plan_of[slot] != plan {
+                plan = self.plan_of[slot];
+                self.plans[plan].fit(&mut ws);
+            }
+            let k = self.indices[slot];
+            let tv = Instant::now();
+            let b = src.boxes[k].expect("extents computed for every scored rotation");
+            ws.begin(b.dims);
+            src.cloud.voxelize(&src.rows[k], &b.min, s, ws.grid_mut());
+            t_vox += tv.elapsed();
+            local.push((slot, score(self.plans[plan], &mut ws, slot)));
+            let n = self.done.fetch_add(1, Ordering::Relaxed) + 1;
+            if let Some(p) = self.ctl.progress {
+                p(n);
+            }
+        }
+        let lock = "no worker panics while holding the lock";
+        let mut slots = self.slots.lock().expect(lock);
+        for (slot, r) in local {
+            slots[slot] = Some(r);
+        }
+        self.stats.lock().expect(lock).add(&StageTimes {
+            voxelize: t_vox,
+            forward: ws.t_forward,
+            product: ws.t_product,
+            inverse: ws.t_inverse,
+            max_rounding_error: ws.max_rounding_error,
+            flops: 0.0,
+        });
+    }
 }
 
 #[cfg(test)]
