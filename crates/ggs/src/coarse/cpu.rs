@@ -126,6 +126,21 @@ impl<T: Real> Workspace<T> {
         }
     }
 
+    /// Start a new source grid holding the occupancy `src` (for tests).
+    #[cfg(test)]
+    pub(crate) fn load(&mut self, src: &Occupancy) {
+        self.begin(src.dims);
+        for i in 0..src.dims[0] {
+            for j in 0..src.dims[1] {
+                for l in 0..src.dims[2] {
+                    if src.get(i, j, l) {
+                        self.set(i, j, l);
+                    }
+                }
+            }
+        }
+    }
+
     /// Mark cell (i, j, k) of the current source grid as occupied.
     #[inline]
     pub fn set(&mut self, i: usize, j: usize, k: usize) {
@@ -758,26 +773,22 @@ mod tests {
         }
     }
 
+    /// A grid of `dims` whose cells are occupied with probability `p`.
+    fn random_occupancy(dims: [usize; 3], p: f64, next: &mut dyn FnMut() -> f64) -> Occupancy {
+        Occupancy {
+            dims,
+            cells: (0..dims.iter().product::<usize>())
+                .map(|_| next() < p)
+                .collect(),
+        }
+    }
+
     fn fft_scores(source: &Occupancy, kernel: &Occupancy) -> Vec<i64> {
         let geo = Geometry::new(kernel.dims, source.dims);
         let c = CpuCorrelator::new(geo, kernel);
         let mut ws = c.workspace();
-        load(&mut ws, source);
+        ws.load(source);
         c.all_scores(&mut ws)
-    }
-
-    /// Start `ws` on the occupancy `src`.
-    fn load<T: Real>(ws: &mut Workspace<T>, src: &Occupancy) {
-        ws.begin(src.dims);
-        for i in 0..src.dims[0] {
-            for j in 0..src.dims[1] {
-                for l in 0..src.dims[2] {
-                    if src.get(i, j, l) {
-                        ws.set(i, j, l);
-                    }
-                }
-            }
-        }
     }
 
     proptest! {
@@ -807,13 +818,10 @@ mod tests {
         for case in 0..12 {
             let n = 5 + 2 * case;
             let (kd, sd) = ([n, n + 2, n - 1], [n - 2, n + 1, n]);
-            let occ = |dims: [usize; 3], p: f64, next: &mut dyn FnMut() -> f64| Occupancy {
-                dims,
-                cells: (0..dims.iter().product::<usize>())
-                    .map(|_| next() < p)
-                    .collect(),
-            };
-            let (mut k, mut src) = (occ(kd, 0.3, &mut next), occ(sd, 0.25, &mut next));
+            let (mut k, mut src) = (
+                random_occupancy(kd, 0.3, &mut next),
+                random_occupancy(sd, 0.25, &mut next),
+            );
             if case % 3 == 2 {
                 // One source cell and three kernel cells: the best (5) is reached at three
                 // offsets, and the tie goes to the first.
@@ -832,14 +840,14 @@ mod tests {
             let geo = Geometry::new(k.dims, src.dims);
             let exact = CpuCorrelator::<f64>::new(geo, &k);
             let mut ws64 = exact.workspace();
-            load(&mut ws64, &src);
+            ws64.load(&src);
             let want = exact.best_offset(&mut ws64);
             let c = CpuCorrelator::<f32>::from_f64(&exact);
             let mut ws = c.workspace();
-            load(&mut ws, &src);
+            ws.load(&src);
             let approx = c.approx_best(&mut ws, true);
             // Without candidates (a ranking pass): the same best, no offsets kept.
-            load(&mut ws, &src);
+            ws.load(&src);
             let ranking = c.approx_best(&mut ws, false);
             assert_eq!(
                 (ranking.value, ranking.offset),
@@ -860,7 +868,7 @@ mod tests {
                     assert!(offsets.iter().any(|&a| flat(a) == i), "case {case}");
                 }
             }
-            load(&mut ws, &src);
+            ws.load(&src);
             assert_eq!(
                 c.exact_among(&ws, &k, offsets.into_iter()),
                 want,
@@ -871,8 +879,9 @@ mod tests {
         assert!(kept >= 6, "candidates kept in {kept} cases only");
     }
 
-    /// A flat correlation (an empty source: every output ties at 0) keeps no candidates, so
-    /// a re-scoring correlates in f64; collecting stops early instead of growing with the grid.
+    /// The rounded best equals the f64 correlation's best (value and first offset, ties
+    /// included) at the plan the source needs and at a larger one, whenever its bound is
+    /// below ½.
     #[test]
     fn the_rounded_best_is_the_exact_best_at_any_plan_size() {
         let mut next = crate::test_rng::uniform(91);
@@ -880,18 +889,15 @@ mod tests {
         for case in 0..10 {
             let n = 4 + 2 * case;
             let (kd, sd) = ([n + 1, n, n + 2], [n, n + 2, n - 1]);
-            let occ = |dims: [usize; 3], p: f64, next: &mut dyn FnMut() -> f64| Occupancy {
-                dims,
-                cells: (0..dims.iter().product::<usize>())
-                    .map(|_| next() < p)
-                    .collect(),
-            };
             // Sparse sources tie often: the first offset of the best score must win.
-            let (k, src) = (occ(kd, 0.15, &mut next), occ(sd, 0.05, &mut next));
+            let (k, src) = (
+                random_occupancy(kd, 0.15, &mut next),
+                random_occupancy(sd, 0.05, &mut next),
+            );
             let geo = Geometry::new(k.dims, src.dims);
             let exact = CpuCorrelator::<f64>::new(geo, &k);
             let mut ws64 = exact.workspace();
-            load(&mut ws64, &src);
+            ws64.load(&src);
             let want = exact.best_offset(&mut ws64);
             // The plan the source needs, and one planned for a source twice as large.
             let big = Geometry::new(k.dims, sd.map(|d| 2 * d));
@@ -899,7 +905,7 @@ mod tests {
             for g in [geo, larger] {
                 let c = CpuCorrelator::<f32>::new(g, &k);
                 let mut ws = c.workspace();
-                load(&mut ws, &src);
+                ws.load(&src);
                 let got = c.rounded_best(&mut ws);
                 if got.error_bound > 0.0 {
                     // A bound of ½ or more: the approximate best, within its bound.
@@ -918,6 +924,8 @@ mod tests {
         );
     }
 
+    /// A flat correlation (an empty source: every output ties at 0) keeps no candidates, so
+    /// a re-scoring correlates in f64; collecting stops early instead of growing with the grid.
     #[test]
     fn a_flat_correlation_keeps_no_candidates() {
         let k = Occupancy {
@@ -931,7 +939,7 @@ mod tests {
         let geo = Geometry::new(k.dims, src.dims);
         let c = CpuCorrelator::<f32>::new(geo, &k);
         let mut ws = c.workspace();
-        load(&mut ws, &src);
+        ws.load(&src);
         let approx = c.approx_best(&mut ws, true);
         assert_eq!(approx.candidates, Candidates::NONE);
         assert!(ws.near_best.is_empty());
@@ -944,19 +952,13 @@ mod tests {
             let n = 6 + 4 * case;
             let kd = [n, n + 3, n - 2];
             let sd = [n - 1, n + 1, n];
-            let rand_occ = |dims: [usize; 3], p: f64, next: &mut dyn FnMut() -> f64| Occupancy {
-                dims,
-                cells: (0..dims.iter().product::<usize>())
-                    .map(|_| next() < p)
-                    .collect(),
-            };
-            let k = rand_occ(kd, 0.3, &mut next);
-            let src = rand_occ(sd, 0.2, &mut next);
+            let k = random_occupancy(kd, 0.3, &mut next);
+            let src = random_occupancy(sd, 0.2, &mut next);
             let exact = fft_scores(&src, &k);
             let geo = Geometry::new(k.dims, src.dims);
             let c = CpuCorrelator::<f32>::new(geo, &k);
             let mut ws = c.workspace();
-            load(&mut ws, &src);
+            ws.load(&src);
             let mut values = Vec::new();
             c.correlate(&mut ws, |v, _| values.push(v as f64));
             let bound = c.error_bound(ws.occupied_estimate);
@@ -1001,7 +1003,7 @@ mod tests {
         let c = CpuCorrelator::new(geo, &k);
         let mut ws = c.workspace();
         for s in [&big, &small, &big] {
-            load(&mut ws, s);
+            ws.load(s);
             assert_eq!(c.all_scores(&mut ws), brute_force_scores(s, &k));
         }
         assert!(ws.max_rounding_error < 1e-9);

@@ -236,16 +236,7 @@ mod tests {
         let geo = Geometry::with_fft_len(kernel.dims, big.source_max, need);
         let c = CpuCorrelator::<f64>::new(geo, &kernel);
         let mut ws = c.workspace();
-        ws.begin(source.dims);
-        for i in 0..source.dims[0] {
-            for j in 0..source.dims[1] {
-                for l in 0..source.dims[2] {
-                    if source.get(i, j, l) {
-                        ws.set(i, j, l);
-                    }
-                }
-            }
-        }
+        ws.load(&source);
         assert_eq!(c.all_scores(&mut ws), brute_force_scores(&source, &kernel));
     }
 }
