@@ -120,8 +120,9 @@ pub fn read_records<S: PointStore, R: Read + Send>(
 
 /// Skip `len` bytes of `r` (at byte `start` of the file), or fail naming `what`.
 /// Append the rest of `r` to `buf` (holding the file's first bytes) in one allocation when
-/// the file's length is known: growing by doubling copies the text and faults its pages in
-/// again (a third of the reading time of the bunny's ASCII scans).
+/// the file's length is known, instead of growing it by doubling, which copies the text
+/// read so far at each step (no measurable change on the 1.4 MB bunny scans; it matters
+/// for files of hundreds of megabytes).
 pub fn read_rest<R: Read>(
     path: &Path,
     r: &mut R,
