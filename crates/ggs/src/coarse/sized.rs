@@ -10,8 +10,10 @@
 //!
 //! Extra plans cost a kernel spectrum each. They are made for the sizes most rotations of a
 //! pass need, largest saving first, while their spectra together stay within
-//! [`EXTRA_SPECTRA`] times the full plan's (and [`EXTRA_SPECTRA_CAP`]); a rotation goes to the smallest plan that holds
-//! it (the full one always does).
+//! [`EXTRA_SPECTRA`] times the full plan's (and [`EXTRA_SPECTRA_CAP`]). A rotation goes to
+//! the smallest plan that holds it (the full one always does). On the coarse level the
+//! ranking is by exact integers ([`CpuCorrelator::rounded_best`]), so there even the
+//! approximate values do not move.
 
 use super::cpu::CpuCorrelator;
 use super::extents::RotatedBox;
