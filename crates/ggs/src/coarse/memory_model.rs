@@ -17,9 +17,9 @@ pub(super) struct MemoryModel {
 }
 
 impl MemoryModel {
-    /// Kernel spectra (f32 and f64, and the smaller f32 plans of [`SizedPlans`]), one workspace per thread (the f64 one, the larger of
-    /// the two a worker holds at a time), kernel occupancy and the centred points (as
-    /// triples and as coordinate arrays).
+    /// Kernel spectra (f32 and f64, and the smaller f32 plans of [`SizedPlans`]), one
+    /// workspace per thread (the f64 one, the larger of the two a worker holds at a time),
+    /// kernel occupancy and the centred points (as triples and as coordinate arrays).
     pub fn bytes(&self, geo: &Geometry) -> u64 {
         let cells = geo
             .kernel_dims

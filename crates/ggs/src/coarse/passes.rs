@@ -30,15 +30,10 @@ pub struct CpuBackend;
 pub enum CpuPlan {
     /// Rotations are ranked by [`CpuCorrelator::rounded_best`], each at the smallest plan
     /// that holds it (the ranking does not depend on the plan).
-    Approximate(CpuCorrelator<f32>, Occupancy, SizedPlans),
+    Approximate(SizedPlans),
     /// The kernel is kept for exact scores at a few candidate offsets and for the smaller
     /// approximate plans ([`SizedPlans`]).
-    Mixed(
-        CpuCorrelator<f64>,
-        CpuCorrelator<f32>,
-        Occupancy,
-        SizedPlans,
-    ),
+    Mixed(CpuCorrelator<f64>, SizedPlans),
     Exact(CpuCorrelator<f64>),
 }
 
@@ -50,15 +45,14 @@ impl Backend for CpuBackend {
         scores: Scores,
     ) -> Result<Box<dyn Correlator>> {
         Ok(Box::new(match scores {
-            Scores::Approximate => CpuPlan::Approximate(
+            Scores::Approximate => CpuPlan::Approximate(SizedPlans::new(
                 CpuCorrelator::new(geo, kernel),
                 kernel.clone(),
-                SizedPlans::default(),
-            ),
+            )),
             Scores::Mixed => {
                 let exact = CpuCorrelator::<f64>::new(geo, kernel);
                 let approx = CpuCorrelator::<f32>::from_f64(&exact);
-                CpuPlan::Mixed(exact, approx, kernel.clone(), SizedPlans::default())
+                CpuPlan::Mixed(exact, SizedPlans::new(approx, kernel.clone()))
             }
             Scores::Exact => CpuPlan::Exact(CpuCorrelator::new(geo, kernel)),
         }))
@@ -69,7 +63,8 @@ impl CpuPlan {
     /// `(|K|, n_k, geometry)`, the same in every correlator of the plan.
     fn kernel(&self) -> (i64, i64, &Geometry) {
         match self {
-            CpuPlan::Approximate(c, _, _) | CpuPlan::Mixed(_, c, _, _) => {
+            CpuPlan::Approximate(p) | CpuPlan::Mixed(_, p) => {
+                let c = p.full();
                 (c.kernel_cells, c.kernel_occupied, c.geometry())
             }
             CpuPlan::Exact(c) => (c.kernel_cells, c.kernel_occupied, c.geometry()),
@@ -97,10 +92,10 @@ impl Correlator for CpuPlan {
         indices: &[usize],
     ) -> Result<(Vec<BestOffset>, StageTimes)> {
         match self {
-            CpuPlan::Mixed(c, _, _, _) | CpuPlan::Exact(c) => {
+            CpuPlan::Mixed(c, _) | CpuPlan::Exact(c) => {
                 run_pass(ctl, src, c, indices, |c, ws, _| c.best_offset(ws))
             }
-            CpuPlan::Approximate(..) => Err(GgsError::param(
+            CpuPlan::Approximate(_) => Err(GgsError::param(
                 "scores",
                 "this correlator was planned for approximate scores only",
             )),
@@ -116,9 +111,10 @@ impl Correlator for CpuPlan {
         indices: &[usize],
         candidates: &[Candidates],
     ) -> Result<(Vec<BestOffset>, StageTimes)> {
-        let CpuPlan::Mixed(_, approx, kernel, _) = self else {
+        let CpuPlan::Mixed(_, sized) = self else {
             return self.exact(ctl, src, indices);
         };
+        let (approx, kernel) = (sized.full(), sized.kernel());
         let (kept, again): (Vec<usize>, Vec<usize>) =
             (0..indices.len()).partition(|&i| candidates[i].offsets().is_some());
         let pick = |from: &[usize]| from.iter().map(|&i| indices[i]).collect::<Vec<_>>();
@@ -152,17 +148,11 @@ impl Correlator for CpuPlan {
         indices: &[usize],
     ) -> Result<(Vec<ApproxBest>, StageTimes)> {
         match self {
-            CpuPlan::Approximate(full, kernel, sized) => {
-                let a = sized.assign(ctl.pool, full, kernel, src.boxes, indices);
-                run_sized(ctl, src, &a.plans(full), &a.plan_of, indices, |c, ws, _| {
-                    c.rounded_best(ws)
-                })
+            CpuPlan::Approximate(sized) => {
+                sized_pass(ctl, src, sized, indices, |c, ws| c.rounded_best(ws))
             }
-            CpuPlan::Mixed(_, full, kernel, sized) => {
-                let a = sized.assign(ctl.pool, full, kernel, src.boxes, indices);
-                run_sized(ctl, src, &a.plans(full), &a.plan_of, indices, |c, ws, _| {
-                    c.approx_best(ws, true)
-                })
+            CpuPlan::Mixed(_, sized) => {
+                sized_pass(ctl, src, sized, indices, |c, ws| c.approx_best(ws, true))
             }
             CpuPlan::Exact(_) => Ok(as_intervals(self.exact(ctl, src, indices)?)),
         }
@@ -179,6 +169,25 @@ fn run_pass<T: Real, R: Send + Copy>(
     score: impl Fn(&CpuCorrelator<T>, &mut Workspace<T>, usize) -> R + Sync,
 ) -> Result<(Vec<R>, StageTimes)> {
     run_sized(ctl, src, &[corr], &vec![0; indices.len()], indices, score)
+}
+
+/// [`run_pass`] with each rotation at the smallest plan of `sized` that holds it.
+fn sized_pass(
+    ctl: &PassControl<'_>,
+    src: &RotatedSources<'_>,
+    sized: &SizedPlans,
+    indices: &[usize],
+    score: impl Fn(&CpuCorrelator<f32>, &mut Workspace<f32>) -> ApproxBest + Sync,
+) -> Result<(Vec<ApproxBest>, StageTimes)> {
+    let a = sized.assign(ctl.pool, src.boxes, indices);
+    run_sized(
+        ctl,
+        src,
+        &a.plans(sized),
+        &a.plan_of,
+        indices,
+        |c, ws, _| score(c, ws),
+    )
 }
 
 /// [`run_pass`] with rotation `indices[i]` correlated by `plans[plan_of[i]]`. Rotations are

@@ -34,9 +34,11 @@ fn volume(len: [usize; 3]) -> usize {
     len[0] * len[1] * len[2]
 }
 
-/// The extra f32 plans of one full plan (see the module documentation).
-#[derive(Default)]
+/// A full f32 plan, its kernel, and the extra plans made beside it so far (see the module
+/// documentation).
 pub struct SizedPlans {
+    full: CpuCorrelator<f32>,
+    kernel: Occupancy,
     extra: Mutex<Vec<Arc<CpuCorrelator<f32>>>>,
 }
 
@@ -48,26 +50,43 @@ pub struct Assignment {
 }
 
 impl Assignment {
-    /// The plans, the full one first.
-    pub fn plans<'a>(&'a self, full: &'a CpuCorrelator<f32>) -> Vec<&'a CpuCorrelator<f32>> {
-        std::iter::once(full)
+    /// The plans, the full one (of `sized`, whose assignment this is) first.
+    pub fn plans<'a>(&'a self, sized: &'a SizedPlans) -> Vec<&'a CpuCorrelator<f32>> {
+        std::iter::once(&sized.full)
             .chain(self.extra.iter().map(|p| &**p))
             .collect()
     }
 }
 
 impl SizedPlans {
-    /// Plans for scoring the rotations `indices` (with extents `boxes`) against `kernel`,
-    /// making the extra plans worth making (see the module documentation).
+    /// The full plan `full` of `kernel`, with no extra plan yet.
+    pub fn new(full: CpuCorrelator<f32>, kernel: Occupancy) -> Self {
+        SizedPlans {
+            full,
+            kernel,
+            extra: Mutex::new(Vec::new()),
+        }
+    }
+
+    /// The full plan.
+    pub fn full(&self) -> &CpuCorrelator<f32> {
+        &self.full
+    }
+
+    /// The kernel every plan correlates with.
+    pub fn kernel(&self) -> &Occupancy {
+        &self.kernel
+    }
+
+    /// Plans for scoring the rotations `indices` (with extents `boxes`), making the extra
+    /// plans worth making (see the module documentation).
     pub fn assign(
         &self,
         pool: &rayon::ThreadPool,
-        full: &CpuCorrelator<f32>,
-        kernel: &Occupancy,
         boxes: &[Option<RotatedBox>],
         indices: &[usize],
     ) -> Assignment {
-        let geo = *full.geometry();
+        let geo = *self.full.geometry();
         let need: Vec<[usize; 3]> = indices
             .iter()
             .map(|&k| match boxes[k] {
@@ -76,13 +95,13 @@ impl SizedPlans {
             })
             .collect();
         let mut extra = self.extra.lock().expect("no panic while planning");
-        self.add_wanted(pool, &mut extra, &geo, kernel, &need);
+        self.add_wanted(pool, &mut extra, &geo, &need);
         let mut a = Assignment {
             extra: extra.clone(),
             plan_of: Vec::new(),
         };
         drop(extra);
-        let plans = a.plans(full);
+        let plans = a.plans(self);
         let plan_of = need.iter().map(|n| smallest_holding(&plans, *n)).collect();
         a.plan_of = plan_of;
         a
@@ -94,7 +113,6 @@ impl SizedPlans {
         pool: &rayon::ThreadPool,
         extra: &mut Vec<Arc<CpuCorrelator<f32>>>,
         geo: &Geometry,
-        kernel: &Occupancy,
         need: &[[usize; 3]],
     ) {
         let mut demand: BTreeMap<[usize; 3], usize> = BTreeMap::new();
@@ -124,7 +142,7 @@ impl SizedPlans {
         }
         let made: Vec<CpuCorrelator<f32>> = pool.install(|| {
             make.into_par_iter()
-                .map(|g| CpuCorrelator::new(g, kernel))
+                .map(|g| CpuCorrelator::new(g, &self.kernel))
                 .collect()
         });
         extra.extend(made.into_iter().map(Arc::new));
@@ -193,11 +211,11 @@ mod tests {
         ];
         let boxes: Vec<_> = dims.iter().map(|&d| boxed(d)).collect();
         let full_geo = Geometry::new(kernel.dims, [20, 19, 18]);
-        let full = CpuCorrelator::<f32>::new(full_geo, &kernel);
-        let sized = SizedPlans::default();
+        let sized = SizedPlans::new(CpuCorrelator::<f32>::new(full_geo, &kernel), kernel);
         let idx: Vec<usize> = (0..dims.len()).collect();
-        let a = sized.assign(&pool(), &full, &kernel, &boxes, &idx);
-        let plans = a.plans(&full);
+        let a = sized.assign(&pool(), &boxes, &idx);
+        let plans = a.plans(&sized);
+        let kernel = sized.kernel();
         assert_eq!(plans[0].geometry().fft_len, full_geo.fft_len);
         assert_eq!(a.plan_of[0], 0, "the largest source needs the full plan");
         for (i, d) in dims.iter().enumerate() {
@@ -219,7 +237,7 @@ mod tests {
         let extra: u64 = a.extra.iter().map(|p| p.geometry().kernel_bytes(4)).sum();
         assert!(extra <= SizedPlans::bytes_bound(&full_geo));
         // A second pass reuses the plans instead of making them again.
-        let b = sized.assign(&pool(), &full, &kernel, &boxes, &idx);
+        let b = sized.assign(&pool(), &boxes, &idx);
         assert!(a.extra.iter().zip(&b.extra).all(|(x, y)| Arc::ptr_eq(x, y)));
         assert_eq!(
             (b.extra.len(), b.plan_of.clone()),
