@@ -66,6 +66,8 @@ fn verified_list<'py>(py: Python<'py>, reg: &Registration) -> PyResult<Bound<'py
         d.set_item("fitness_target", h.evidence.fitness_target)?;
         d.set_item("iterations", h.iterations)?;
         d.set_item("rejected_early", h.rejected_early)?;
+        d.set_item("at_a_glance", h.at_a_glance)?;
+        d.set_item("evidence_points", h.evidence.points.to_vec())?;
         let level = match h.level {
             ggs::pipeline::HypothesisLevel::Voxel => "voxel",
             ggs::pipeline::HypothesisLevel::Coarse => "coarse",

@@ -422,7 +422,11 @@ fn print_verification(v: &Verification) -> Result<()> {
             h.evidence.fitness_source,
             h.evidence.fitness_target,
             h.iterations,
-            if h.rejected_early { ", rejected early" } else { "" },
+            match (h.rejected_early, h.at_a_glance) {
+                (true, true) => ", rejected at a glance",
+                (true, false) => ", rejected early",
+                _ => "",
+            },
             if h.settled { ", settled on finer cells" } else { "" },
             h.same_as
                 .map(|j| format!(", stopped on the pose of #{}", j + 1))

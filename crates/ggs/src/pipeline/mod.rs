@@ -295,6 +295,9 @@ pub struct VerifiedHypothesis {
     pub evidence: Evidence,
     pub iterations: usize,
     pub rejected_early: bool,
+    /// Rejected on a glance at every `k`-th sample point (`evidence.points`), whose estimate
+    /// of the score lay far below the threshold (`verify::finish`).
+    pub at_a_glance: bool,
     /// Refined again on finer cells because another distinct pose also survived.
     pub settled: bool,
     /// Stopped at the check on the pose of this earlier verified hypothesis (its `rank`),
@@ -725,6 +728,7 @@ fn verify_hypotheses(
             evidence: c.evidence,
             iterations: c.iterations,
             rejected_early: c.rejected_early,
+            at_a_glance: c.at_a_glance,
             settled: false,
             same_as: c.same_as,
         });
