@@ -464,18 +464,24 @@ pub fn finish(
         });
     }
     let threshold = cfg.reject_ratio * best_so_far;
+    let goes_on = more_iterations(&first, cfg);
     let at_a_glance = glance.filter(|g| g.score + GLANCE_SIGMAS * g.standard_error() < threshold);
-    let evidence = at_a_glance.unwrap_or_else(|| verifier.evidence(&first.transform));
-    let rejected = evidence.score < threshold;
-    if rejected || !more_iterations(&first, cfg) {
-        return Ok(Checked {
-            transform: first.transform,
-            evidence,
-            iterations,
-            rejected_early: rejected,
-            at_a_glance: at_a_glance.is_some(),
-            same_as: None,
-        });
+    // With nothing to beat (the first hypothesis: a score is never below 0) and a second run
+    // to come, the score at the check would decide nothing and be replaced: skipped.
+    let nothing_to_decide = threshold <= 0.0 && goes_on;
+    if !nothing_to_decide {
+        let evidence = at_a_glance.unwrap_or_else(|| verifier.evidence(&first.transform));
+        let rejected = evidence.score < threshold;
+        if rejected || !goes_on {
+            return Ok(Checked {
+                transform: first.transform,
+                evidence,
+                iterations,
+                rejected_early: rejected,
+                at_a_glance: at_a_glance.is_some(),
+                same_as: None,
+            });
+        }
     }
     let rest = cfg.max_iterations - cfg.check_iterations;
     let second = verification_run(thinned, &first.transform, refine_cfg, rest)?;
