@@ -135,6 +135,12 @@ def test_register_bundled_pair_and_result_fields():
     chosen = [h for h in r.verified if h["chosen"]]
     assert len(chosen) == 1 and chosen[0]["rank"] == r.chosen_rank
     assert all(0.0 <= h["score"] <= 1.0 for h in r.verified)
+    # The chosen one is scored over every sample point; one rejected at a glance over fewer.
+    assert not chosen[0]["at_a_glance"] and len(chosen[0]["evidence_points"]) == 2
+    for h in r.verified:
+        assert not h["at_a_glance"] or (
+            h["rejected_early"] and h["evidence_points"][0] < chosen[0]["evidence_points"][0]
+        )
     assert {"verify_ms", "search_ms"} <= set(r.timings)
     # float32 input of the same values gives the same answer.
     r32 = ggs.register(source.astype(np.float32).astype(np.float64), target, voxel=0.006)
