@@ -805,8 +805,6 @@ mod tests {
         }
     }
 
-    /// f32 outputs stay within the proven bound of the exact scores, on every offset, and
-    /// the bound is small enough to be useful (far below the score range).
     /// The f32 pass's candidates hold every offset where the exact best is reached, and the
     /// sparse exact score among them equals the f64 correlation's best offset (value and
     /// offset, ties included), on random grids and on grids built to tie.
@@ -944,6 +942,8 @@ mod tests {
         assert!(ws.near_best.is_empty());
     }
 
+    /// f32 outputs stay within the proven bound of the exact scores, on every offset, and
+    /// the bound is small enough to be useful (far below the score range).
     #[test]
     fn f32_outputs_are_within_the_error_bound() {
         let mut next = crate::test_rng::uniform(41);

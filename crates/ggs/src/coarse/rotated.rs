@@ -168,29 +168,73 @@ const MAGIC: f64 = 6_755_399_441_055_744.0;
 /// integer (in f32).
 const MAGIC32: f32 = 12_582_912.0;
 
-/// One rotation's constants for voxelizing in f32, and the bound that keeps it exact.
-///
-/// With `u = 2^−24` (f32's unit roundoff), rows `|r_i| ≤ 1`, `S = |x| + |y| + |z| ≤ scale`
-/// and `v = (r·p − min)/s` the exact cell coordinate, the f32 value `v'` of
-/// `((r'·p') − min')·inv'` (every input rounded to f32 once) satisfies
-/// `|v' − v| ≤ (9·u·scale + 4·u·|min|)/s`: the inputs' rounding `2u·S`, the three products and
-/// two sums `3u·S`, the subtraction and `min`'s rounding `u·(S + 2|min|)`, the product by the
-/// rounded `1/s` `2u·|v|` with `|v| ≤ (S + |min|)/s`. The tolerance `tol` below is twice that
-/// (`32u·(scale + |min|)/s`), so a point farther than `tol` from every cell boundary in f32 has
-/// the cell of the exact quotient; the others (about `6·tol` of the points: 0.1 % at 64 cells
-/// a side) take the exact path, so the occupancy is the same bit for bit.
-struct SinglePrecision {
-    rows: [[f32; 3]; 3],
-    min: [f32; 3],
-    inv: f32,
-    tol: [f32; 3],
+/// A float the vector blocks of the voxelization run in (f32 or f64).
+trait BlockFloat: Real {
+    /// `1.5·2^(p−1)` for `p` mantissa bits: `(v + ROUND) − ROUND` is `v` rounded to the
+    /// nearest integer for `|v| < 2^(p−2)`.
+    const ROUND: Self;
+    /// The flat index `self` (a whole number the float holds exactly) as u32.
+    fn index(self) -> u32;
 }
 
-impl SinglePrecision {
-    /// The constants for rotation `r`, minimum `min` and voxel `s`, or `None` when f32 cannot
-    /// serve: a grid of 2^24 cells or more (flat indices would not be exact in f32),
+impl BlockFloat for f64 {
+    const ROUND: f64 = MAGIC;
+    #[inline(always)]
+    fn index(self) -> u32 {
+        self as u32
+    }
+}
+
+impl BlockFloat for f32 {
+    const ROUND: f32 = MAGIC32;
+    /// Through i32, a vector conversion; a clear lane's index lies in `[0, 2^24)`.
+    #[inline(always)]
+    fn index(self) -> u32 {
+        self as i32 as u32
+    }
+}
+
+/// One rotation's constants for the vector blocks in `F`: rows, minimum and `1/s` in `F`,
+/// and the tolerance `abs[d] + rel·v` within which a cell coordinate `v` counts as near a
+/// cell boundary (those points take the exact quotient).
+///
+/// - f64 ([`Blocks::double`]): `1e-9 + 8ε·v`, the slack of [`voxel::cell_fast`](super::voxel::cell_fast).
+/// - f32 ([`Blocks::single`]): with `u = 2^−24` (f32's unit roundoff), rows `|r_i| ≤ 1`,
+///   `S = |x| + |y| + |z| ≤ scale` and `v = (r·p − min)/s` the exact cell coordinate, the f32
+///   value `v'` of `((r'·p') − min')·inv'` (every input rounded to f32 once) satisfies
+///   `|v' − v| ≤ (9·u·scale + 4·u·|min|)/s`: the inputs' rounding `2u·S`, the three products
+///   and two sums `3u·S`, the subtraction and `min`'s rounding `u·(S + 2|min|)`, the product
+///   by the rounded `1/s` `2u·|v|` with `|v| ≤ (S + |min|)/s`. The tolerance is twice that
+///   (`32u·(scale + |min|)/s`), so a point farther than it from every cell boundary in f32
+///   has the cell of the exact quotient; the others (about 6 tolerances' worth of the
+///   points: 0.1 % at 64 cells a side) take the exact path, so the occupancy is the same bit
+///   for bit.
+struct Blocks<F> {
+    rows: [[F; 3]; 3],
+    min: [F; 3],
+    inv: F,
+    abs: [F; 3],
+    rel: F,
+}
+
+impl Blocks<f64> {
+    /// The f64 constants of rotation `r`, minimum `min` and `inv = 1/s`.
+    fn double(r: &[[f64; 3]; 3], min: &Point, inv: f64) -> Self {
+        Blocks {
+            rows: *r,
+            min: *min,
+            inv,
+            abs: [1e-9; 3],
+            rel: 8.0 * f64::EPSILON,
+        }
+    }
+}
+
+impl Blocks<f32> {
+    /// The f32 constants for rotation `r`, minimum `min` and voxel `s`, or `None` when f32
+    /// cannot serve: a grid of 2^24 cells or more (flat indices would not be exact in f32),
     /// coordinates of 2^21 cells or more, or a tolerance of a tenth of a cell or more.
-    fn new(r: &[[f64; 3]; 3], min: &Point, s: f64, scale: f64, cells: usize) -> Option<Self> {
+    fn single(r: &[[f64; 3]; 3], min: &Point, s: f64, scale: f64, cells: usize) -> Option<Self> {
         const U: f64 = f32::EPSILON as f64 / 2.0;
         let inv = 1.0 / s;
         let reach: [f64; 3] = std::array::from_fn(|d| (scale + min[d].abs()) * inv);
@@ -198,11 +242,12 @@ impl SinglePrecision {
         let fits = cells < 1 << 24
             && reach.iter().all(|&x| x < (1u32 << 21) as f64)
             && tol.iter().all(|&t| t < 0.1);
-        fits.then(|| SinglePrecision {
+        fits.then(|| Blocks {
             rows: r.map(|row| row.map(|x| x as f32)),
             min: min.map(|x| x as f32),
             inv: inv as f32,
-            tol: tol.map(|t| t as f32),
+            abs: tol.map(|t| t as f32),
+            rel: 0.0,
         })
     }
 }
@@ -218,7 +263,7 @@ impl RotatableCloud {
     /// `0 ≤ v < 2^51`) and the flat index in f64 (exact below 2^53) so the compiler can keep
     /// the arithmetic in vector registers; a block with a coordinate within the tolerance
     /// of a cell boundary is redone point by point with the exact quotient. Where f32 can hold
-    /// the grid and the coordinates (the private `SinglePrecision` gives the bound), the
+    /// the grid and the coordinates (the private `Blocks::single` gives the bound), the
     /// blocks run in f32 instead (8–17 % less voxelization time on the bunny pair, criterion
     /// and `cpu_voxelize_ms`), and only the points near a boundary take the exact path.
     pub fn voxelize<T: Real>(&self, r: &[[f64; 3]; 3], min: &Point, s: f64, grid: GridView<'_, T>) {
@@ -272,165 +317,122 @@ impl RotatableCloud {
         s: f64,
         grid: GridView<'_, T>,
     ) {
-        match SinglePrecision::new(r, min, s, self.scale, grid.cells.len()) {
-            Some(single) => self.voxelize_single(&single, r, min, s, grid),
-            None => self.voxelize_double(r, min, s, grid),
+        let GridView { cells, sx, sy } = grid;
+        let inv = 1.0 / s;
+        let exact = ExactPath {
+            r,
+            min,
+            s,
+            inv,
+            sx,
+            sy,
+        };
+        match Blocks::single(r, min, s, self.scale, cells.len()) {
+            Some(b) => {
+                self.voxelize_blocks(&b, [&self.xs32, &self.ys32, &self.zs32], &exact, cells)
+            }
+            None => {
+                let b = Blocks::double(r, min, inv);
+                self.voxelize_blocks(&b, [&self.xs, &self.ys, &self.zs], &exact, cells)
+            }
         }
     }
 
-    /// The single-precision path of [`RotatableCloud::voxelize`]: blocks of 16 points in f32
-    /// (twice the lanes of f64), each point whose coordinate lies within the f32 error bound
-    /// of a cell boundary ([`SinglePrecision`]) marked by the exact path instead.
+    /// The vector blocks of [`RotatableCloud::voxelize`] in `F` over the coordinates `xyz`
+    /// (the points' in `F`), then the points left over by the exact path.
     #[inline(always)]
-    fn voxelize_single<T: Real>(
+    fn voxelize_blocks<T: Real, F: BlockFloat>(
         &self,
-        single: &SinglePrecision,
-        r: &[[f64; 3]; 3],
-        min: &Point,
-        s: f64,
-        grid: GridView<'_, T>,
+        b: &Blocks<F>,
+        xyz: [&[F]; 3],
+        exact: &ExactPath<'_>,
+        grid: &mut [T],
     ) {
-        let GridView {
-            cells: grid,
-            sx,
-            sy,
-        } = grid;
-        let inv = 1.0 / s;
         let n = self.points.len();
-        let full = n - n % LANES;
-        // Flat indices below 2^24 (checked by `SinglePrecision::new`): exact in f32.
-        let (fsx, fsy) = (sx as f32, sy as f32);
-        let mut i = 0;
-        while i < full {
-            let xs = &self.xs32[i..i + LANES];
-            let ys = &self.ys32[i..i + LANES];
-            let zs = &self.zs32[i..i + LANES];
-            let mut flat = [0.0f32; LANES];
-            let mut near = [false; LANES];
-            for (d, scale) in [(0, fsx), (1, fsy), (2, 1.0)] {
-                let (row, m, tol) = (&single.rows[d], single.min[d], single.tol[d]);
-                for l in 0..LANES {
-                    let dot = row[0] * xs[l] + row[1] * ys[l] + row[2] * zs[l];
-                    let v = (dot - m) * single.inv;
-                    let nearest = (v + MAGIC32) - MAGIC32;
-                    let floor = if nearest > v { nearest - 1.0 } else { nearest };
-                    let f = v - floor;
-                    near[l] |= !(f > tol && f < 1.0 - tol);
-                    flat[l] += floor * scale;
-                }
-            }
-            // Through i32 (a vector conversion); a clear lane's index lies in [0, 2^24).
-            let mut index = [0u32; LANES];
-            for l in 0..LANES {
-                index[l] = flat[l] as i32 as u32;
-            }
-            if near.iter().any(|&b| b) {
-                for l in 0..LANES {
-                    if near[l] {
-                        self.mark_exact(i + l, r, min, s, inv, grid, sx, sy);
-                    } else {
-                        grid[index[l] as usize] = T::one();
-                    }
-                }
-            } else {
-                for v in index {
-                    grid[v as usize] = T::one();
-                }
-            }
-            i += LANES;
-        }
-        for k in full..n {
-            self.mark_exact(k, r, min, s, inv, grid, sx, sy);
-        }
-    }
-
-    /// The double-precision path of [`RotatableCloud::voxelize`], for grids or coordinates
-    /// too large for f32 ([`SinglePrecision::new`]).
-    #[inline(always)]
-    fn voxelize_double<T: Real>(
-        &self,
-        r: &[[f64; 3]; 3],
-        min: &Point,
-        s: f64,
-        grid: GridView<'_, T>,
-    ) {
-        let GridView {
-            cells: grid,
-            sx,
-            sy,
-        } = grid;
-        let inv = 1.0 / s;
-        let n = self.points.len();
-        // Flat indices go through u32 in the vector loop (one conversion instruction).
+        // Flat indices go through u32 (one conversion instruction).
         let full = if grid.len() <= u32::MAX as usize {
             n - n % LANES
         } else {
             0
         };
-        let (fsx, fsy) = (sx as f64, sy as f64);
+        let to_f = |x: usize| F::from(x).expect("a stride is a finite float");
+        let (fsx, fsy) = (to_f(exact.sx), to_f(exact.sy));
         let mut i = 0;
         while i < full {
-            let xs = &self.xs[i..i + LANES];
-            let ys = &self.ys[i..i + LANES];
-            let zs = &self.zs[i..i + LANES];
-            // One axis at a time over the block (straight vector code), each coordinate by
-            // the expression of `dot_row`.
-            let mut flat = [0.0f64; LANES];
+            let [xs, ys, zs] = xyz.map(|c| &c[i..i + LANES]);
+            // One axis at a time over the block (straight vector code).
+            let mut flat = [F::zero(); LANES];
             let mut near = [false; LANES];
-            for (d, scale) in [(0, fsx), (1, fsy), (2, 1.0)] {
-                let row = &r[d];
+            for (d, scale) in [(0, fsx), (1, fsy), (2, F::one())] {
+                let (row, m, abs) = (&b.rows[d], b.min[d], b.abs[d]);
                 for l in 0..LANES {
                     let dot = row[0] * xs[l] + row[1] * ys[l] + row[2] * zs[l];
-                    let v = (dot - min[d]) * inv;
-                    let nearest = (v + MAGIC) - MAGIC;
-                    let floor = if nearest > v { nearest - 1.0 } else { nearest };
+                    let v = (dot - m) * b.inv;
+                    let nearest = (v + F::ROUND) - F::ROUND;
+                    let floor = if nearest > v {
+                        nearest - F::one()
+                    } else {
+                        nearest
+                    };
                     let f = v - floor;
-                    let tol = 1e-9 + 8.0 * f64::EPSILON * v;
-                    near[l] |= !(f > tol && f < 1.0 - tol);
-                    flat[l] += floor * scale;
+                    let tol = abs + b.rel * v;
+                    near[l] |= !(f > tol && f < F::one() - tol);
+                    flat[l] = flat[l] + floor * scale;
                 }
             }
-            let mut index = [0u32; LANES];
-            for l in 0..LANES {
-                index[l] = flat[l] as u32;
-            }
-            let near_boundary = near;
-            if near_boundary.iter().any(|&b| b) {
-                for l in 0..LANES {
-                    self.mark_exact(i + l, r, min, s, inv, grid, sx, sy);
-                }
-            } else {
-                for v in index {
-                    grid[v as usize] = T::one();
-                }
-            }
+            let index = flat.map(F::index);
+            self.mark_block(exact, i, &index, &near, grid);
             i += LANES;
         }
         for k in full..n {
-            self.mark_exact(k, r, min, s, inv, grid, sx, sy);
+            self.mark_exact(exact, k, grid);
         }
     }
 
-    /// Scalar path of [`RotatableCloud::voxelize`] for point `k`.
-    #[allow(clippy::too_many_arguments)]
+    /// Mark the block of points `i..i + LANES`: the cell `index[l]` of each lane clear of a
+    /// boundary, the cell of the exact quotient for each lane `near` one.
     #[inline(always)]
-    fn mark_exact<T: Real>(
+    fn mark_block<T: Real>(
         &self,
-        k: usize,
-        r: &[[f64; 3]; 3],
-        min: &Point,
-        s: f64,
-        inv: f64,
+        exact: &ExactPath<'_>,
+        i: usize,
+        index: &[u32; LANES],
+        near: &[bool; LANES],
         grid: &mut [T],
-        sx: usize,
-        sy: usize,
     ) {
-        let p = &self.points[k];
-        let i = super::voxel::cell_fast(dot_row(&r[0], p) - min[0], s, inv);
-        let j = super::voxel::cell_fast(dot_row(&r[1], p) - min[1], s, inv);
-        let l = super::voxel::cell_fast(dot_row(&r[2], p) - min[2], s, inv);
-        grid[i * sx + j * sy + l] = T::one();
+        if near.iter().any(|&b| b) {
+            for l in 0..LANES {
+                if near[l] {
+                    self.mark_exact(exact, i + l, grid);
+                } else {
+                    grid[index[l] as usize] = T::one();
+                }
+            }
+        } else {
+            for &v in index {
+                grid[v as usize] = T::one();
+            }
+        }
     }
+
+    /// Scalar path of [`RotatableCloud::voxelize`] for point `k`: the exact quotient.
+    #[inline(always)]
+    fn mark_exact<T: Real>(&self, e: &ExactPath<'_>, k: usize, grid: &mut [T]) {
+        let p = &self.points[k];
+        let cell = |d: usize| super::voxel::cell_fast(dot_row(&e.r[d], p) - e.min[d], e.s, e.inv);
+        grid[cell(0) * e.sx + cell(1) * e.sy + cell(2)] = T::one();
+    }
+}
+
+/// What the exact path of one rotation's voxelization needs: rows `r`, minimum `min`, voxel
+/// `s` and `inv = 1/s`, and the grid's strides.
+struct ExactPath<'a> {
+    r: &'a [[f64; 3]; 3],
+    min: &'a Point,
+    s: f64,
+    inv: f64,
+    sx: usize,
+    sy: usize,
 }
 
 #[cfg(test)]
@@ -520,6 +522,22 @@ mod tests {
         check_against_exact_quotient(&rc, s, &matrices, |r, min, g| rc.voxelize(r, min, s, g));
     }
 
+    fn exact_path<'a>(
+        r: &'a [[f64; 3]; 3],
+        min: &'a Point,
+        s: f64,
+        g: &GridView<'_, f32>,
+    ) -> ExactPath<'a> {
+        ExactPath {
+            r,
+            min,
+            s,
+            inv: 1.0 / s,
+            sx: g.sx,
+            sy: g.sy,
+        }
+    }
+
     #[test]
     fn both_precisions_mark_the_cells_of_the_exact_quotient() {
         // At 1/64 the grid has about 200 × 40 × 130 cells: many points fall within f32's
@@ -527,12 +545,15 @@ mod tests {
         for s in [0.125, 1.0 / 64.0] {
             let (rc, matrices) = boundary_cloud(s);
             check_against_exact_quotient(&rc, s, &matrices, |r, min, g| {
-                rc.voxelize_double(r, min, s, g)
+                let b = Blocks::double(r, min, 1.0 / s);
+                let e = exact_path(r, min, s, &g);
+                rc.voxelize_blocks(&b, [&rc.xs, &rc.ys, &rc.zs], &e, g.cells)
             });
             check_against_exact_quotient(&rc, s, &matrices, |r, min, g| {
-                let single = SinglePrecision::new(r, min, s, rc.scale, g.cells.len())
+                let b = Blocks::single(r, min, s, rc.scale, g.cells.len())
                     .expect("small enough for f32");
-                rc.voxelize_single(&single, r, min, s, g)
+                let e = exact_path(r, min, s, &g);
+                rc.voxelize_blocks(&b, [&rc.xs32, &rc.ys32, &rc.zs32], &e, g.cells)
             });
         }
     }
@@ -541,15 +562,15 @@ mod tests {
     fn single_precision_declines_what_f32_cannot_hold() {
         let r = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
         let min = [-1.0; 3];
-        assert!(SinglePrecision::new(&r, &min, 0.01, 1.0, 1000).is_some());
+        assert!(Blocks::single(&r, &min, 0.01, 1.0, 1000).is_some());
         // A grid of 2^24 cells: flat indices would not be exact.
-        assert!(SinglePrecision::new(&r, &min, 0.01, 1.0, 1 << 24).is_none());
+        assert!(Blocks::single(&r, &min, 0.01, 1.0, 1 << 24).is_none());
         // 2^21 cells from the origin: the tolerance would be too wide, the rounding trick
         // out of range.
-        assert!(SinglePrecision::new(&r, &min, 1e-6, 3.0, 1000).is_none());
-        let t = SinglePrecision::new(&r, &min, 0.01, 1.0, 1000).unwrap();
+        assert!(Blocks::single(&r, &min, 1e-6, 3.0, 1000).is_none());
+        let t = Blocks::single(&r, &min, 0.01, 1.0, 1000).unwrap();
         // 32·2^−24·(1 + 1)/0.01 = 3.8e-4 cells.
-        assert!((t.tol[0] as f64 - 32.0 * 2.0 / 0.01 / 16_777_216.0).abs() < 1e-9);
+        assert!((t.abs[0] as f64 - 32.0 * 2.0 / 0.01 / 16_777_216.0).abs() < 1e-9);
     }
 
     #[test]

@@ -303,22 +303,18 @@ impl Verifier {
         };
         let k = k.max(1);
         let summed = |points: &[Point]| points.len().div_ceil(k);
-        let matched_source: u64 = (0..summed(&self.source))
-            .into_par_iter()
-            .map(|s| {
-                let i = s * k;
-                let p = &self.source[i];
-                self.weight(facing(i, self.in_target.nearest(&t.apply(p)), 0))
-            })
-            .sum();
-        let matched_target: u64 = (0..summed(&self.target))
-            .into_par_iter()
-            .map(|s| {
-                let i = s * k;
-                let q = &self.target[i];
-                self.weight(facing(i, self.in_source.nearest(&inv.apply(q)), 1))
-            })
-            .sum();
+        // Σ w over every k-th point of one side's sample, moved by `m` into the other cloud.
+        let side = |points: &[Point], m: &Rigid, other: &RadiusSearch, which: usize| -> u64 {
+            (0..summed(points))
+                .into_par_iter()
+                .map(|s| {
+                    let i = s * k;
+                    self.weight(facing(i, other.nearest(&m.apply(&points[i])), which))
+                })
+                .sum()
+        };
+        let matched_source = side(&self.source, t, &self.in_target, 0);
+        let matched_target = side(&self.target, &inv, &self.in_source, 1);
         let points = [summed(&self.source), summed(&self.target)];
         let fs = matched_source as f64 / WEIGHT_ONE as f64 / points[0] as f64;
         let ft = matched_target as f64 / WEIGHT_ONE as f64 / points[1] as f64;
