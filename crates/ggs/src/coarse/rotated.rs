@@ -161,24 +161,17 @@ impl RotatableCloud {
 /// f64: two independent dependency chains).
 const LANES: usize = 16;
 
-/// `1.5·2^52`: for `0 ≤ v < 2^51`, `(v + MAGIC) − MAGIC` is `v` rounded to the nearest integer.
-const MAGIC: f64 = 6_755_399_441_055_744.0;
-
-/// `1.5·2^23`: for `|v| < 2^22`, `(v + MAGIC32) − MAGIC32` is `v` rounded to the nearest
-/// integer (in f32).
-const MAGIC32: f32 = 12_582_912.0;
-
 /// A float the vector blocks of the voxelization run in (f32 or f64).
 trait BlockFloat: Real {
-    /// `1.5·2^(p−1)` for `p` mantissa bits: `(v + ROUND) − ROUND` is `v` rounded to the
-    /// nearest integer for `|v| < 2^(p−2)`.
+    /// `1.5·2^(p−1)` for `p` mantissa bits (`1.5·2^52` for f64, `1.5·2^23` for f32):
+    /// `(v + ROUND) − ROUND` is `v` rounded to the nearest integer for `|v| < 2^(p−2)`.
     const ROUND: Self;
     /// The flat index `self` (a whole number the float holds exactly) as u32.
     fn index(self) -> u32;
 }
 
 impl BlockFloat for f64 {
-    const ROUND: f64 = MAGIC;
+    const ROUND: f64 = 6_755_399_441_055_744.0;
     #[inline(always)]
     fn index(self) -> u32 {
         self as u32
@@ -186,7 +179,7 @@ impl BlockFloat for f64 {
 }
 
 impl BlockFloat for f32 {
-    const ROUND: f32 = MAGIC32;
+    const ROUND: f32 = 12_582_912.0;
     /// Through i32, a vector conversion; a clear lane's index lies in `[0, 2^24)`.
     #[inline(always)]
     fn index(self) -> u32 {

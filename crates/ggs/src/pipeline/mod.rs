@@ -703,7 +703,7 @@ fn verify_hypotheses(
         .par_iter()
         .map(|(h, _)| {
             let polished = maybe_polished(source, target, h, search, cfg)?;
-            let first = verify::first_stage(&thinned, &verifier, &polished.transform, &icp, v)?;
+            let first = verify::first_stage(&thinned, &polished.transform, &icp, v)?;
             Ok((polished, first))
         })
         .collect::<Result<_>>()?;

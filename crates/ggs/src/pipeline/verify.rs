@@ -359,15 +359,12 @@ pub struct Checked {
     pub same_as: Option<usize>,
 }
 
-/// The first stage of [`check`]: `check_iterations` of ICP from a start, and a glance at the
-/// evidence of where they end (every `k`-th sample point, [`Verifier::glance_stride`]; none
-/// when the samples are too small). It depends on nothing but its start, so the hypotheses of
-/// a pair run it side by side ([`first_stage`]); what follows depends on the hypotheses
-/// before ([`finish`]).
+/// The first stage of [`check`]: `check_iterations` of ICP from a start. It depends on
+/// nothing but its start, so the hypotheses of a pair run it side by side ([`first_stage`]);
+/// what follows depends on the hypotheses before ([`finish`]).
 #[derive(Debug, Clone)]
 pub struct FirstStage {
     run: RefinedPose,
-    glance: Option<Evidence>,
 }
 
 /// ICP of the verification from `from` for `iterations` on the thinned clouds.
@@ -384,19 +381,15 @@ fn verification_run(
     refine_prepared_pose(thinned, from, &c)
 }
 
-/// Refine `start` for `cfg.check_iterations` on the thinned clouds and glance at where it
-/// ends.
+/// Refine `start` for `cfg.check_iterations` on the thinned clouds.
 pub fn first_stage(
     thinned: &PreparedPair,
-    verifier: &Verifier,
     start: &Rigid,
     refine_cfg: &RefineConfig,
     cfg: &VerifyConfig,
 ) -> Result<FirstStage> {
     let run = verification_run(thinned, start, refine_cfg, cfg.check_iterations)?;
-    let k = verifier.glance_stride();
-    let glance = (k > 1).then(|| verifier.evidence_every(&run.transform, k));
-    Ok(FirstStage { run, glance })
+    Ok(FirstStage { run })
 }
 
 /// Refine `start` on the thinned clouds and score it, stopping early when it scores below
@@ -414,7 +407,7 @@ pub fn check(
     best_so_far: f64,
     known: &dyn Fn(&Rigid) -> Option<(usize, Evidence)>,
 ) -> Result<Checked> {
-    let first = first_stage(thinned, verifier, start, refine_cfg, cfg)?;
+    let first = first_stage(thinned, start, refine_cfg, cfg)?;
     finish(
         first,
         thinned,
@@ -429,7 +422,9 @@ pub fn check(
 /// The rest of [`check`] after its first stage: the decision at the check and, for a
 /// hypothesis that goes on, its second run.
 ///
-/// The decision first looks at the glance: a hypothesis whose glance, raised by
+/// The decision first glances at the evidence: every `k`-th sample point
+/// ([`Verifier::glance_stride`]; no glance when the samples are too small, nor when there is
+/// nothing to reject against). A hypothesis whose glance, raised by
 /// [`GLANCE_SIGMAS`] standard errors, still scores below `reject_ratio × best_so_far` is
 /// rejected with the glance as its evidence (`points` says so), without the full sums. The
 /// glance is the mean of the same per-point weights over an evenly strided part of the same
@@ -447,7 +442,7 @@ pub fn finish(
     best_so_far: f64,
     known: &dyn Fn(&Rigid) -> Option<(usize, Evidence)>,
 ) -> Result<Checked> {
-    let FirstStage { run: first, glance } = first;
+    let FirstStage { run: first } = first;
     let mut iterations = first.iterations;
     if let Some((k, evidence)) = known(&first.transform) {
         return Ok(Checked {
@@ -461,11 +456,14 @@ pub fn finish(
     }
     let threshold = cfg.reject_ratio * best_so_far;
     let goes_on = more_iterations(&first, cfg);
-    let at_a_glance = glance.filter(|g| g.score + GLANCE_SIGMAS * g.standard_error() < threshold);
     // With nothing to beat (the first hypothesis: a score is never below 0) and a second run
     // to come, the score at the check would decide nothing and be replaced: skipped.
     let nothing_to_decide = threshold <= 0.0 && goes_on;
     if !nothing_to_decide {
+        let k = verifier.glance_stride();
+        let at_a_glance = (threshold > 0.0 && k > 1)
+            .then(|| verifier.evidence_every(&first.transform, k))
+            .filter(|g| g.score + GLANCE_SIGMAS * g.standard_error() < threshold);
         let evidence = at_a_glance.unwrap_or_else(|| verifier.evidence(&first.transform));
         let rejected = evidence.score < threshold;
         if rejected || !goes_on {
