@@ -144,17 +144,40 @@ pub fn rotation_angle_deg(a: &Matrix3<f64>, b: &Matrix3<f64>) -> f64 {
 /// of the angle, `(tr(aᵀ·b) − 1)/2` (here `Σ a_ij·b_ij`), is more than 1e-9 from
 /// `cos(max_deg)`: the angle is monotone in it, and both ways of computing it agree to
 /// about 1e-15. Closer than that, the answer is [`rotation_angle_deg`]'s itself. A search's
-/// neighbour test runs it hundreds of thousands of times.
+/// neighbour test runs it hundreds of thousands of times: [`WithinDeg`] computes
+/// `cos(max_deg)` once for them.
 pub fn rotation_within_deg(a: &Matrix3<f64>, b: &Matrix3<f64>, max_deg: f64) -> bool {
-    let tr: f64 = a.iter().zip(b.iter()).map(|(x, y)| x * y).sum();
-    let cos = (tr - 1.0) / 2.0;
-    let cos_max = max_deg.to_radians().cos();
-    if cos > cos_max + 1e-9 {
-        true
-    } else if cos < cos_max - 1e-9 {
-        false
-    } else {
-        rotation_angle_deg(a, b) <= max_deg
+    WithinDeg::new(max_deg).holds(a, b)
+}
+
+/// The test "at most `max_deg` apart" ([`rotation_within_deg`]) with `cos(max_deg)` computed
+/// once, for a test run over many pairs of rotations.
+#[derive(Debug, Clone, Copy)]
+pub struct WithinDeg {
+    max_deg: f64,
+    cos_max: f64,
+}
+
+impl WithinDeg {
+    pub fn new(max_deg: f64) -> Self {
+        WithinDeg {
+            max_deg,
+            cos_max: max_deg.to_radians().cos(),
+        }
+    }
+
+    /// Whether `a` and `b` are at most the angle apart.
+    #[inline]
+    pub fn holds(&self, a: &Matrix3<f64>, b: &Matrix3<f64>) -> bool {
+        let tr: f64 = a.iter().zip(b.iter()).map(|(x, y)| x * y).sum();
+        let cos = (tr - 1.0) / 2.0;
+        if cos > self.cos_max + 1e-9 {
+            true
+        } else if cos < self.cos_max - 1e-9 {
+            false
+        } else {
+            rotation_angle_deg(a, b) <= self.max_deg
+        }
     }
 }
 

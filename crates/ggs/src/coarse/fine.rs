@@ -12,7 +12,7 @@ use super::voxel::Occupancy;
 use crate::cloud::Cloud;
 use crate::error::{GgsError, Result};
 use crate::rotations::RotationSet;
-use crate::transform::{rotation_within_deg, Rigid};
+use crate::transform::{Rigid, WithinDeg};
 use nalgebra::Vector3;
 use std::time::Instant;
 
@@ -203,11 +203,12 @@ impl<'p> FineLevel<'p> {
     ) -> Result<Picks> {
         let radius = cfg.distinct_radius_deg.unwrap_or(2.0 * set.step_deg);
         let mut chosen = vec![winner];
+        let within = WithinDeg::new(radius);
         while chosen.len() < cfg.top_k.max(2) {
             let far = |k: usize| {
                 chosen
                     .iter()
-                    .all(|&c| !rotation_within_deg(&set.matrices[c], &set.matrices[k], radius))
+                    .all(|&c| !within.holds(&set.matrices[c], &set.matrices[k]))
             };
             match self.exact_best(ctl, far, tally)? {
                 Some(k) => chosen.push(k),

@@ -11,7 +11,7 @@ use crate::cloud::{Cloud, Point};
 use crate::error::Result;
 use crate::rotations::RotationSet;
 use crate::thin::cell_centroids;
-use crate::transform::{rotation_within_deg, Rigid};
+use crate::transform::{Rigid, WithinDeg};
 use nalgebra::Vector3;
 
 /// Coarse level: score every rotation approximately at `s0 = factor × voxel` with the
@@ -74,11 +74,12 @@ fn distinct_in_order(
     set: &RotationSet,
 ) -> Vec<usize> {
     let mut picks: Vec<usize> = Vec::with_capacity(count);
+    let within = WithinDeg::new(radius_deg);
     for &k in order {
         if picks.len() >= count {
             break;
         }
-        let far = |&j: &usize| !rotation_within_deg(&set.matrices[j], &set.matrices[k], radius_deg);
+        let far = |&j: &usize| !within.holds(&set.matrices[j], &set.matrices[k]);
         if picks.iter().all(far) {
             picks.push(k);
         }
@@ -139,11 +140,12 @@ pub(super) fn kept_with_neighbours(
     for &k in kept {
         selected[k] = true;
     }
+    let within = WithinDeg::new(level.neighbour_deg);
     for k in 0..n {
         if !selected[k]
-            && kept.iter().any(|&j| {
-                rotation_within_deg(&set.matrices[j], &set.matrices[k], level.neighbour_deg)
-            })
+            && kept
+                .iter()
+                .any(|&j| within.holds(&set.matrices[j], &set.matrices[k]))
         {
             selected[k] = true;
         }
