@@ -205,7 +205,7 @@ class Result:
     def verified(self) -> List[Dict[str, Any]]:
         """The verified hypotheses in coarse rank order (rank, rotation_index, match_score,
         polished_match_score, score, fitness_source, fitness_target, iterations,
-        rejected_early, at_a_glance: rejected on a strided part of the points,
+        rejected_early, at_a_glance: rejected on a random part of the points,
         evidence_points: the source and target points the score summed, level, settled,
         same_as: the rank of the earlier hypothesis whose
         pose it reached and whose score it carries, or None; chosen, runner_up,

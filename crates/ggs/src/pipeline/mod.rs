@@ -295,7 +295,7 @@ pub struct VerifiedHypothesis {
     pub evidence: Evidence,
     pub iterations: usize,
     pub rejected_early: bool,
-    /// Rejected on a glance at every `k`-th sample point (`evidence.points`), whose estimate
+    /// Rejected on a glance at a random part of the sample (`evidence.points`), whose estimate
     /// of the score lay far below the threshold (`verify::finish`).
     pub at_a_glance: bool,
     /// Refined again on finer cells because another distinct pose also survived.

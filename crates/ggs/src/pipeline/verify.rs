@@ -58,9 +58,13 @@ pub const SAMPLE_POINTS: usize = 20_000;
 /// pair, which fits closely, lost to a flip that fits loosely (bunny_ear_back_bun270).
 pub const INDEX_POINTS: usize = 400_000;
 
-/// The glance at the check ([`finish`]) sums every `k`-th point of each sample, with `k` such
-/// that at least this many points of each side remain (no glance when `k` would be 1).
+/// The glance at the check ([`finish`]) sums `⌈n/k⌉` points of each sample of `n`, drawn at
+/// random (a fixed seed), with `k` the largest stride that leaves at least this many points
+/// of each side (no glance when `k` would be 1).
 pub const GLANCE_POINTS: usize = 2_000;
+
+/// Seed of the glance's draw ([`Verifier::glance`]): fixed, so a run is reproducible.
+const GLANCE_SEED: u64 = 0x6767_735f_676c_616e;
 
 /// A hypothesis whose glance plus this many of its standard errors
 /// ([`Evidence::standard_error`]) scores below the rejection threshold (`reject_ratio × best
@@ -162,8 +166,8 @@ pub struct Evidence {
     pub fitness_target: f64,
     /// `(f_s + f_t) / 2`.
     pub score: f64,
-    /// How many source and target points the sums ran over: the samples, or every `k`-th
-    /// point of them for a hypothesis rejected at a glance ([`finish`]).
+    /// How many source and target points the sums ran over: the samples, or the part of them
+    /// drawn for the glance for a hypothesis rejected at a glance ([`finish`]).
     pub points: [usize; 2],
 }
 
@@ -179,6 +183,22 @@ pub struct Verifier {
     /// With [`VerifyScore::Oriented`]: the normals of the source sample, the target sample,
     /// the source index and the target index points.
     normals: Option<[Vec<Normal>; 4]>,
+    /// The positions in each sample the glance sums ([`Self::glance`]); `None` when the
+    /// samples are too small for one.
+    glance: Option<[Vec<u32>; 2]>,
+}
+
+/// `m` of the positions `0..n`, drawn uniformly without replacement by `rng` (a partial
+/// Fisher–Yates shuffle), in increasing order.
+fn draw(n: usize, m: usize, rng: &mut crate::rng::Rng) -> Vec<u32> {
+    let mut all: Vec<u32> = (0..n as u32).collect();
+    for i in 0..m.min(n) {
+        let j = i + rng.below((n - i) as u64) as usize;
+        all.swap(i, j);
+    }
+    all.truncate(m.min(n));
+    all.sort_unstable();
+    all
 }
 
 /// A unit normal.
@@ -241,9 +261,18 @@ impl Verifier {
                 normals(&target_index, &target_index, &ti, &tc),
             ]
         });
+        let k = (source_sample.len().min(target_sample.len()) / GLANCE_POINTS).max(1);
+        let glance = (k > 1).then(|| {
+            [&source_sample, &target_sample].map(|sample| {
+                let n = sample.len();
+                let mut rng = crate::rng::Rng::stream(GLANCE_SEED, &[n as u64]);
+                draw(n, n.div_ceil(k), &mut rng)
+            })
+        });
         Verifier {
             in_source: RadiusSearch::new(&source_index, distance, None),
             in_target: RadiusSearch::new(&target_index, distance, None),
+            glance,
             source: source_sample,
             target: target_sample,
             distance,
@@ -276,19 +305,21 @@ impl Verifier {
 
     /// The evidence for `T` (`p_target = T · p_source`).
     pub fn evidence(&self, t: &Rigid) -> Evidence {
-        self.evidence_every(t, 1)
+        self.evidence_over(t, None)
     }
 
-    /// The stride of a glance: the largest `k` that leaves [`GLANCE_POINTS`] points of each
-    /// sample (1: the samples are too small for a glance).
-    pub fn glance_stride(&self) -> usize {
-        (self.source.len().min(self.target.len()) / GLANCE_POINTS).max(1)
+    /// A glance at the evidence for `T`: the same sums over the positions drawn at random
+    /// from each sample (`⌈n/k⌉` of `n`, [`GLANCE_POINTS`]), so `score` estimates the full one
+    /// with [`Evidence::standard_error`] (a simple random sample: no scan pattern of the
+    /// file's point order can bias it, as a stride could). `None` when the samples are too
+    /// small for a glance.
+    pub fn glance(&self, t: &Rigid) -> Option<Evidence> {
+        let [s, g] = self.glance.as_ref()?;
+        Some(self.evidence_over(t, Some([s, g])))
     }
 
-    /// The evidence for `T` over every `k`-th point of each sample (`k = 1`: all of them).
-    /// `score` is then an estimate of the full one: the mean of the same weights over an
-    /// evenly strided part of the same points.
-    pub fn evidence_every(&self, t: &Rigid, k: usize) -> Evidence {
+    /// The evidence for `T` over the positions `at` of each sample (all of them: `None`).
+    fn evidence_over(&self, t: &Rigid, at: Option<[&[u32]; 2]>) -> Evidence {
         let inv = t.inverse();
         let facing = |i: usize, hit: Option<(usize, f64)>, side: usize| -> Option<(usize, f64)> {
             let (Some(n), Some((j, _))) = (&self.normals, hit) else {
@@ -301,21 +332,20 @@ impl Verifier {
             };
             Self::facing(r, a, b).then_some(hit).flatten()
         };
-        let k = k.max(1);
-        let summed = |points: &[Point]| points.len().div_ceil(k);
-        // Σ w over every k-th point of one side's sample, moved by `m` into the other cloud.
+        let summed = |points: &[Point], which: usize| at.map_or(points.len(), |a| a[which].len());
+        // Σ w over the summed points of one side's sample, moved by `m` into the other cloud.
         let side = |points: &[Point], m: &Rigid, other: &RadiusSearch, which: usize| -> u64 {
-            (0..summed(points))
+            (0..summed(points, which))
                 .into_par_iter()
                 .map(|s| {
-                    let i = s * k;
+                    let i = at.map_or(s, |a| a[which][s] as usize);
                     self.weight(facing(i, other.nearest(&m.apply(&points[i])), which))
                 })
                 .sum()
         };
         let matched_source = side(&self.source, t, &self.in_target, 0);
         let matched_target = side(&self.target, &inv, &self.in_source, 1);
-        let points = [summed(&self.source), summed(&self.target)];
+        let points = [summed(&self.source, 0), summed(&self.target, 1)];
         let fs = matched_source as f64 / WEIGHT_ONE as f64 / points[0] as f64;
         let ft = matched_target as f64 / WEIGHT_ONE as f64 / points[1] as f64;
         Evidence {
@@ -422,13 +452,13 @@ pub fn check(
 /// The rest of [`check`] after its first stage: the decision at the check and, for a
 /// hypothesis that goes on, its second run.
 ///
-/// The decision first glances at the evidence: every `k`-th sample point
-/// ([`Verifier::glance_stride`]; no glance when the samples are too small, nor when there is
+/// The decision first glances at the evidence: a fixed random part of each sample
+/// ([`Verifier::glance`]; no glance when the samples are too small, nor when there is
 /// nothing to reject against). A hypothesis whose glance, raised by
 /// [`GLANCE_SIGMAS`] standard errors, still scores below `reject_ratio × best_so_far` is
 /// rejected with the glance as its evidence (`points` says so), without the full sums. The
-/// glance is the mean of the same per-point weights over an evenly strided part of the same
-/// points. Measured on the 4007 checks of the generated FP-O-H and FP-O-M pairs (50 000
+/// glance is the mean of the same per-point weights over a part of the same points drawn
+/// at random. Measured on the 4007 checks of the generated FP-O-H and FP-O-M pairs (50 000
 /// points, seed 2022), the full score lay within 3.1 of the glance's standard errors (their
 /// spread: 0.75 of one; the stride samples the surface evenly), so six leave a wide margin;
 /// 2392 of the 2895 rejections were taken at a glance. Every other hypothesis is scored in
@@ -460,9 +490,9 @@ pub fn finish(
     // to come, the score at the check would decide nothing and be replaced: skipped.
     let nothing_to_decide = threshold <= 0.0 && goes_on;
     if !nothing_to_decide {
-        let k = verifier.glance_stride();
-        let at_a_glance = (threshold > 0.0 && k > 1)
-            .then(|| verifier.evidence_every(&first.transform, k))
+        let at_a_glance = (threshold > 0.0)
+            .then(|| verifier.glance(&first.transform))
+            .flatten()
             .filter(|g| g.score + GLANCE_SIGMAS * g.standard_error() < threshold);
         let evidence = at_a_glance.unwrap_or_else(|| verifier.evidence(&first.transform));
         let rejected = evidence.score < threshold;
@@ -680,26 +710,56 @@ mod tests {
     }
 
     #[test]
-    fn a_glance_sums_every_kth_point_and_estimates_the_full_score() {
-        // 90 × 90 = 8100 points: a glance at every 4th point (2025 ≥ GLANCE_POINTS).
+    fn a_glance_draws_a_part_of_each_sample_and_estimates_the_full_score() {
+        // 90 × 90 = 8100 points: a glance at ⌈8100 / 4⌉ = 2025 of them (≥ GLANCE_POINTS).
         let c = plane(90);
         let v = Verifier::new(&c, &c, 0.05, 0.01, &VerifyConfig::default());
-        assert_eq!(v.glance_stride(), 4);
-        assert_eq!(
-            Verifier::new(&plane(60), &c, 0.05, 0.01, &VerifyConfig::default()).glance_stride(),
-            1
-        );
+        let small = Verifier::new(&plane(60), &c, 0.05, 0.01, &VerifyConfig::default());
         let shifted = Rigid::new(Matrix3::identity(), Vector3::new(0.3, 0.0, 0.004));
+        assert_eq!(small.glance(&shifted), None);
         let full = v.evidence(&shifted);
-        assert_eq!(v.evidence_every(&shifted, 1), full);
         assert_eq!(full.points, [8100, 8100]);
-        let glance = v.evidence_every(&shifted, 4);
+        let glance = v.glance(&shifted).unwrap();
         assert_eq!(glance.points, [2025, 2025]);
         assert_ne!(glance, full);
+        assert_eq!(v.glance(&shifted), Some(glance), "the draw is fixed");
         let se = glance.standard_error();
         assert!(
             se > 0.0 && (glance.score - full.score).abs() < 3.0 * se,
             "{glance:?} {full:?}"
+        );
+        let drawn = v.glance.as_ref().unwrap();
+        for d in drawn {
+            assert!(d.windows(2).all(|w| w[0] < w[1]) && *d.last().unwrap() < 8100);
+        }
+    }
+
+    #[test]
+    fn a_scan_pattern_in_the_point_order_does_not_bias_the_glance() {
+        // Every 4th source point (in file order) lies 1 m off the plane, as a scan pattern
+        // would: the full score counts 3 of 4 source points. A stride of 4 would glance at
+        // the lifted ones only; the random draw estimates the score within its errors.
+        let c = plane(90);
+        let mut lifted: Vec<Point> = c.iter().collect();
+        for p in lifted.iter_mut().step_by(4) {
+            p[2] = 1.0;
+        }
+        let source = Cloud::new(lifted);
+        let v = Verifier::new(&source, &c, 0.05, 0.01, &VerifyConfig::default());
+        let t = Rigid::identity();
+        let full = v.evidence(&t);
+        assert!((full.fitness_source - 0.75).abs() < 1e-9, "{full:?}");
+        let glance = v.glance(&t).unwrap();
+        let se = glance.standard_error();
+        assert!(
+            (glance.score - full.score).abs() < 3.0 * se,
+            "{glance:?} {full:?}"
+        );
+        let stride: Vec<u32> = (0..8100).step_by(4).collect();
+        let strided = v.evidence_over(&t, Some([&stride, &stride]));
+        assert!(
+            (strided.score - full.score).abs() > 6.0 * strided.standard_error(),
+            "{strided:?} {full:?}"
         );
     }
 
