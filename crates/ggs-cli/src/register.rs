@@ -182,8 +182,18 @@ fn config(args: &RegisterArgs) -> Result<RegistrationConfig> {
 pub fn run(args: RegisterArgs) -> Result<()> {
     let t0 = Instant::now();
     let format = args.io.input.options()?;
-    let mut cfg = config(&args)?;
-    let (source, target) = load_pair(&args, &format)?;
+    // The configuration (its rotation set takes a few ms to build) is made while the clouds
+    // are read; an error in it is reported first.
+    let (cfg, clouds) = std::thread::scope(|s| {
+        let cfg = s.spawn(|| config(&args));
+        let clouds = load_pair(&args, &format);
+        let cfg = cfg
+            .join()
+            .unwrap_or_else(|panic| std::panic::resume_unwind(panic));
+        (cfg, clouds)
+    });
+    let mut cfg = cfg?;
+    let (source, target) = clouds?;
     let read_ms = t0.elapsed().as_secs_f64() * 1e3;
     let pb = crate::progress::bar(cfg.rotations.len(), "rotations", args.quiet);
     let pbc = pb.clone();

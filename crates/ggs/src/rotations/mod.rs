@@ -61,8 +61,25 @@ pub struct RotationSet {
 }
 
 impl RotationSet {
-    /// One of the built-in sets (see [`NAMES`]).
+    /// One of the built-in sets (see [`NAMES`]). Each is built once per process (`hopf15-id`
+    /// takes a few ms) and copied from then on: a program registering many pairs, the
+    /// benchmark runner or a Python loop, pays for it once.
     pub fn named(name: &str) -> Result<Self> {
+        static BUILT: std::sync::Mutex<Vec<RotationSet>> = std::sync::Mutex::new(Vec::new());
+        let cached = |built: &Vec<RotationSet>| built.iter().find(|s| s.name == name).cloned();
+        if let Some(set) = cached(&BUILT.lock().unwrap_or_else(|e| e.into_inner())) {
+            return Ok(set);
+        }
+        let set = Self::build(name)?;
+        let mut built = BUILT.lock().unwrap_or_else(|e| e.into_inner());
+        if cached(&built).is_none() {
+            built.push(set.clone());
+        }
+        Ok(set)
+    }
+
+    /// [`Self::named`], built.
+    fn build(name: &str) -> Result<Self> {
         let (matrices, step_deg) = match name {
             "limited15" => (euler_set(-90, 90, -90, 75, 15, true), 15.0),
             "full15" => (euler_set(0, 345, -90, 75, 15, true), 15.0),
