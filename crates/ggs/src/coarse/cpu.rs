@@ -18,7 +18,8 @@
 //! Transforms: r2c along z (only the rows the source occupies), complex along y (only the
 //! x-planes the source occupies), complex along x, product with the conjugate kernel
 //! spectrum, inverse along x, inverse along y (only the x-planes of valid offsets), c2r along
-//! z (only the rows of valid offsets). Lengths are 2·3-smooth (rustfft's AVX kernels are
+//! z (only the rows of valid offsets). Along z, short rows go through one complex FFT call
+//! per batch of rows instead of one realfft call per row (the private module `zaxis`). Lengths are 2·3-smooth (rustfft's AVX kernels are
 //! fastest there: see docs/performance.md), z even.
 //!
 //! Precision: the correlator is generic over the sample type. In f64 the outputs are rounded
@@ -33,7 +34,7 @@ pub use super::geometry::{fast_len, is_3_smooth, Geometry};
 use super::grid_view::GridView;
 pub use super::grid_view::Real;
 use super::voxel::Occupancy;
-use realfft::{ComplexToReal, RealFftPlanner, RealToComplex};
+use super::zaxis::ZAxis;
 use rustfft::num_complex::Complex;
 
 use rustfft::{Fft, FftPlanner};
@@ -58,8 +59,8 @@ fn round_small(v: f64) -> f64 {
 /// workers (it is `Sync`); each worker brings its own [`Workspace`].
 pub struct CpuCorrelator<T: Real = f64> {
     geo: Geometry,
-    r2c: Arc<dyn RealToComplex<T>>,
-    c2r: Arc<dyn ComplexToReal<T>>,
+    /// Real transforms along z (per row, or batched for short rows: [`super::zaxis`]).
+    z: ZAxis<T>,
     fft_y: Arc<dyn Fft<T>>,
     ifft_y: Arc<dyn Fft<T>>,
     fft_x: Arc<dyn Fft<T>>,
@@ -81,11 +82,17 @@ pub struct Workspace<T: Real = f64> {
     /// Source occupancy, layout [x < ax][y < ay][z < Lz].
     real: Vec<T>,
     ay: usize,
+    /// `Lz`, the length of a row of `real`.
+    lz: usize,
     zspec: Vec<Complex<T>>,
     grid: Vec<Complex<T>>,
     slab: Vec<Complex<T>>,
-    zrow: Vec<Complex<T>>,
-    rrow: Vec<T>,
+    /// The z spectra of one x-plane of offsets, layout [y < ay][kz], and their inverse
+    /// transforms, [y < ay][Lz].
+    zrows: Vec<Complex<T>>,
+    rrows: Vec<T>,
+    /// The batched z transforms' buffer ([`ZAxis::batch_len`]).
+    zbatch: Vec<Complex<T>>,
     scratch: Vec<Complex<T>>,
     /// Outputs near the running best of [`CpuCorrelator::approx_best`] and their offsets.
     near_best: Vec<(T, [usize; 3])>,
@@ -106,7 +113,7 @@ impl<T: Real> Workspace<T> {
     /// Start a new source grid of dims `ns` (each ≤ the geometry's `source_max`): clears the
     /// region it will occupy.
     pub fn begin(&mut self, ns: [usize; 3]) {
-        let lz = self.rrow.len();
+        let lz = self.lz;
         for x in 0..ns[0] {
             let start = x * self.ay * lz;
             self.real[start..start + ns[1] * lz].fill(T::zero());
@@ -118,7 +125,7 @@ impl<T: Real> Workspace<T> {
     /// path for voxelizing many points).
     #[inline]
     pub fn grid_mut(&mut self) -> GridView<'_, T> {
-        let lz = self.rrow.len();
+        let lz = self.lz;
         GridView {
             cells: &mut self.real[..],
             sx: self.ay * lz,
@@ -144,7 +151,7 @@ impl<T: Real> Workspace<T> {
     /// Mark cell (i, j, k) of the current source grid as occupied.
     #[inline]
     pub fn set(&mut self, i: usize, j: usize, k: usize) {
-        let lz = self.rrow.len();
+        let lz = self.lz;
         self.real[(i * self.ay + j) * lz + k] = T::one();
     }
 }
@@ -227,17 +234,14 @@ impl<T: Real> CpuCorrelator<T> {
     /// FFT plans for `geo`, without a kernel.
     fn plan(geo: Geometry) -> Self {
         let [lx, ly, lz] = geo.fft_len;
-        let mut rp = RealFftPlanner::<T>::new();
-        let r2c = rp.plan_fft_forward(lz);
-        let c2r = rp.plan_fft_inverse(lz);
+        let z = ZAxis::plan(lz);
         let mut cp = FftPlanner::<T>::new();
         let fft_y = cp.plan_fft_forward(ly);
         let ifft_y = cp.plan_fft_inverse(ly);
         let fft_x = cp.plan_fft_forward(lx);
         let ifft_x = cp.plan_fft_inverse(lx);
         let scratch_len = [
-            r2c.get_scratch_len(),
-            c2r.get_scratch_len(),
+            z.scratch_len(),
             fft_y.get_inplace_scratch_len(),
             ifft_y.get_inplace_scratch_len(),
             fft_x.get_inplace_scratch_len(),
@@ -248,8 +252,7 @@ impl<T: Real> CpuCorrelator<T> {
         .unwrap_or(0);
         CpuCorrelator {
             geo,
-            r2c,
-            c2r,
+            z,
             fft_y,
             ifft_y,
             fft_x,
@@ -271,11 +274,13 @@ impl<T: Real> CpuCorrelator<T> {
         let mut ws = Workspace {
             real: Vec::new(),
             ay: 0,
+            lz: 0,
             zspec: Vec::new(),
             grid: Vec::new(),
             slab: Vec::new(),
-            zrow: Vec::new(),
-            rrow: Vec::new(),
+            zrows: Vec::new(),
+            rrows: Vec::new(),
+            zbatch: Vec::new(),
             scratch: Vec::new(),
             near_best: Vec::new(),
             occupied_estimate: 0.0,
@@ -302,11 +307,13 @@ impl<T: Real> CpuCorrelator<T> {
         let zero = Complex::<T>::default();
         ws.real.resize(ax * ay * lz, T::zero());
         ws.ay = ay;
+        ws.lz = lz;
         ws.zspec.resize(ax * ay * kz, zero);
         ws.grid.resize(ly * kz * lx, zero);
         ws.slab.resize(X_BLOCK * kz * ly, zero);
-        ws.zrow.resize(kz, zero);
-        ws.rrow.resize(lz, T::zero());
+        ws.zrows.resize(ay * kz, zero);
+        ws.rrows.resize(ay * lz, T::zero());
+        ws.zbatch.resize(self.z.batch_len(ay), zero);
         ws.scratch.resize(self.scratch_len, zero);
         ws.ns = [0; 3];
     }
@@ -319,17 +326,13 @@ impl<T: Real> CpuCorrelator<T> {
         let [nsx, nsy, _] = ws.ns;
         let ay = ws.ay;
         for x in 0..nsx {
-            for y in 0..nsy {
-                let r = (x * ay + y) * lz;
-                let c = (x * ay + y) * kz;
-                self.r2c
-                    .process_with_scratch(
-                        &mut ws.real[r..r + lz],
-                        &mut ws.zspec[c..c + kz],
-                        &mut ws.scratch,
-                    )
-                    .expect("r2c lengths match the plan");
-            }
+            let (r, c) = (x * ay * lz, x * ay * kz);
+            self.z.forward(
+                &mut ws.real[r..r + nsy * lz],
+                &mut ws.zspec[c..c + nsy * kz],
+                &mut ws.zbatch,
+                &mut ws.scratch,
+            );
         }
         for line in ws.grid.chunks_exact_mut(lx) {
             line[nsx..].fill(Complex::default());
@@ -495,7 +498,7 @@ impl<T: Real> CpuCorrelator<T> {
         kernel: &Occupancy,
         candidates: impl Iterator<Item = [usize; 3]>,
     ) -> BestOffset {
-        let lz = ws.rrow.len();
+        let lz = ws.lz;
         let [nx, ny, nz] = ws.ns;
         let mut cells: Vec<[usize; 3]> = Vec::new();
         for i in 0..nx {
@@ -620,15 +623,19 @@ impl<T: Real> CpuCorrelator<T> {
                 for ay in 0..nsy {
                     let jy = wrap(ay, cy, ly);
                     for k in 0..kz {
-                        ws.zrow[k] = ws.slab[(b * kz + k) * ly + jy];
+                        ws.zrows[ay * kz + k] = ws.slab[(b * kz + k) * ly + jy];
                     }
-                    // The result is real: DC and Nyquist bins have no imaginary part.
-                    ws.zrow[0].im = T::zero();
-                    ws.zrow[kz - 1].im = T::zero();
-                    self.c2r
-                        .process_with_scratch(&mut ws.zrow, &mut ws.rrow, &mut ws.scratch)
-                        .expect("c2r lengths match the plan");
-                    visit_row([ax, ay], &ws.rrow[z_tail.clone()], &ws.rrow[z_head.clone()]);
+                }
+                // The result is real (the z axis takes the DC and Nyquist bins as real).
+                self.z.inverse(
+                    &mut ws.zrows[..nsy * kz],
+                    &mut ws.rrows[..nsy * lz],
+                    &mut ws.zbatch,
+                    &mut ws.scratch,
+                );
+                for ay in 0..nsy {
+                    let row = &ws.rrows[ay * lz..(ay + 1) * lz];
+                    visit_row([ax, ay], &row[z_tail.clone()], &row[z_head.clone()]);
                 }
             }
             a0 += nb;
