@@ -49,7 +49,7 @@ pub mod selection;
 pub mod sized;
 pub mod source;
 pub mod voxel;
-mod zaxis;
+pub mod zaxis;
 
 pub use config::{
     auto_voxel, round_2_digits, CoarseToFine, Precision, ProgressFn, SearchConfig, SearchMode,

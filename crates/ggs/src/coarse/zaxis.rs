@@ -5,14 +5,18 @@
 //! at the default coarse level, 1640 rows of 48 at the bunny pair's voxel. realfft does one
 //! call per row, and on rows this short the call costs more than the transform. Measured on
 //! this machine (`cargo run --release --example z_transforms -p ggs`: f32, 40 rows in cache,
-//! ns per row), forward: 25 ns a row of 16 against 13 for a complex FFT of the same rows
+//! ns per row, this module's transforms), forward: 25 ns a row of 16 against 13 for a complex FFT of the same rows
 //! (zero imaginary parts) in one rustfft call, copies in and out included; 59 against 37 at
 //! 48, 72 against 53 at 64, 82 against 61 at 72, but 110 against 135 at 96. The inverse must
 //! first complete each row's Hermitian half: 29 against 18 ns at 16, 35 against 29 at 24,
 //! about even at 32 and 48, worse from 54 on. So forward rows of up to
 //! [`BATCHED_FORWARD_MAX_LEN`] points and inverse rows of up to [`BATCHED_INVERSE_MAX_LEN`]
 //! go through one complex call per batch of rows, the others through realfft. (Two rows
-//! packed as the real and imaginary parts of one complex row were slower both ways.)
+//! packed as the real and imaginary parts of one complex row were slower both ways.
+//! realfft's own algorithm batched, each row read as half as many complex points, one FFT
+//! of half the length over all rows and a twiddle pass, won more in such a timing, most of
+//! all for the inverse, but took the same time in the pipeline: bunny pair, 3dmatch_demo,
+//! lidar_koide and the generated human pair, 6 interleaved runs each.)
 //!
 //! Both compute the same discrete transform, unnormalized, in floating point: the outputs
 //! differ in their last bits only, within the error bound the correlator's callers rely on
@@ -49,7 +53,7 @@ enum Inverse<T: Real> {
 
 /// The z transforms of one plan: rows of `len` real points (even), `len / 2 + 1` complex
 /// bins each.
-pub(super) struct ZAxis<T: Real> {
+pub struct ZAxis<T: Real> {
     len: usize,
     forward: Forward<T>,
     inverse: Inverse<T>,
@@ -58,8 +62,18 @@ pub(super) struct ZAxis<T: Real> {
 impl<T: Real> ZAxis<T> {
     /// Plans for rows of `len` points (even), batched where that is faster
     /// ([`BATCHED_FORWARD_MAX_LEN`], [`BATCHED_INVERSE_MAX_LEN`]).
-    pub(super) fn plan(len: usize) -> Self {
+    pub fn plan(len: usize) -> Self {
         Self::with_limits(len, BATCHED_FORWARD_MAX_LEN, BATCHED_INVERSE_MAX_LEN)
+    }
+
+    /// realfft one row at a time, both ways.
+    pub fn per_row(len: usize) -> Self {
+        Self::with_limits(len, 0, 0)
+    }
+
+    /// Batched both ways.
+    pub fn batched(len: usize) -> Self {
+        Self::with_limits(len, len, len)
     }
 
     /// [`Self::plan`] with the batched transforms for rows of up to `forward_max` and
@@ -85,7 +99,7 @@ impl<T: Real> ZAxis<T> {
     }
 
     /// Scratch (complex values) the transforms need.
-    pub(super) fn scratch_len(&self) -> usize {
+    pub fn scratch_len(&self) -> usize {
         let f = match &self.forward {
             Forward::PerRow(p) => p.get_scratch_len(),
             Forward::Batched(p) => p.get_inplace_scratch_len(),
@@ -99,7 +113,7 @@ impl<T: Real> ZAxis<T> {
 
     /// Complex values of the batch buffer ([`Self::forward`], [`Self::inverse`]) for up to
     /// `rows` rows.
-    pub(super) fn batch_len(&self, rows: usize) -> usize {
+    pub fn batch_len(&self, rows: usize) -> usize {
         let batched = matches!(self.forward, Forward::Batched(_))
             || matches!(self.inverse, Inverse::Batched(_));
         if batched {
@@ -111,7 +125,7 @@ impl<T: Real> ZAxis<T> {
 
     /// The first `len / 2 + 1` bins of the DFT of each row of `real` (rows of `len`) into
     /// `spec` (rows of `len / 2 + 1`). `real` may be overwritten.
-    pub(super) fn forward(
+    pub fn forward(
         &self,
         real: &mut [T],
         spec: &mut [Complex<T>],
@@ -142,7 +156,7 @@ impl<T: Real> ZAxis<T> {
     /// The real inverse DFT (unnormalized) of each row of `spec` (rows of `len / 2 + 1` bins
     /// of a Hermitian spectrum; the imaginary parts of the first and, `len` being even, the
     /// last bin are taken as 0) into `real` (rows of `len`). `spec` may be overwritten.
-    pub(super) fn inverse(
+    pub fn inverse(
         &self,
         spec: &mut [Complex<T>],
         real: &mut [T],
@@ -192,15 +206,15 @@ mod tests {
     /// Per row both ways, batched both ways, batched forward only.
     fn three(len: usize) -> [ZAxis<f64>; 3] {
         [
-            ZAxis::with_limits(len, 0, 0),
-            ZAxis::with_limits(len, len, len),
+            ZAxis::per_row(len),
+            ZAxis::batched(len),
             ZAxis::with_limits(len, len, 0),
         ]
     }
 
     #[test]
     fn batched_and_per_row_transforms_agree_and_invert() {
-        for len in [2, 6, 16, 24, 48, 64, 96] {
+        for len in [2, 4, 6, 16, 24, 36, 48, 54, 64, 72, 96, 128] {
             let (n, kz) = (5, len / 2 + 1);
             let input = rows(len, n);
             let mut results = Vec::new();
