@@ -18,9 +18,9 @@
 //! Transforms: r2c along z (only the rows the source occupies), complex along y (only the
 //! x-planes the source occupies), complex along x, product with the conjugate kernel
 //! spectrum, inverse along x, inverse along y (only the x-planes of valid offsets), c2r along
-//! z (only the rows of valid offsets). Along z, short rows go through one complex FFT call
-//! per batch of rows instead of one realfft call per row (the private module `zaxis`). Lengths are 2·3-smooth (rustfft's AVX kernels are
-//! fastest there: see docs/performance.md), z even.
+//! z (only the rows of valid offsets); along z, short rows go through one complex FFT call
+//! per batch of rows instead of one realfft call per row ([`super::zaxis`]). Lengths are
+//! 2·3-smooth (rustfft's AVX kernels are fastest there: see docs/performance.md), z even.
 //!
 //! Precision: the correlator is generic over the sample type. In f64 the outputs are rounded
 //! to the integers they equal ([`CpuCorrelator::best_offset`]). In f32 (twice the SIMD lanes,

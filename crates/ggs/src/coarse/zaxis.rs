@@ -37,17 +37,11 @@ pub const BATCHED_FORWARD_MAX_LEN: usize = 72;
 /// on longer rows).
 pub const BATCHED_INVERSE_MAX_LEN: usize = 24;
 
-/// The forward z transforms of one plan.
-enum Forward<T: Real> {
+/// One direction of the z transforms of a plan (`R`: realfft's transform that way).
+enum Way<T: Real, R: ?Sized> {
     /// realfft, one call per row.
-    PerRow(Arc<dyn RealToComplex<T>>),
+    PerRow(Arc<R>),
     /// A complex FFT over many rows in one call.
-    Batched(Arc<dyn Fft<T>>),
-}
-
-/// The inverse z transforms of one plan.
-enum Inverse<T: Real> {
-    PerRow(Arc<dyn ComplexToReal<T>>),
     Batched(Arc<dyn Fft<T>>),
 }
 
@@ -55,8 +49,8 @@ enum Inverse<T: Real> {
 /// bins each.
 pub struct ZAxis<T: Real> {
     len: usize,
-    forward: Forward<T>,
-    inverse: Inverse<T>,
+    forward: Way<T, dyn RealToComplex<T>>,
+    inverse: Way<T, dyn ComplexToReal<T>>,
 }
 
 impl<T: Real> ZAxis<T> {
@@ -82,14 +76,14 @@ impl<T: Real> ZAxis<T> {
         let mut rp = RealFftPlanner::<T>::new();
         let mut cp = FftPlanner::<T>::new();
         let forward = if len <= forward_max {
-            Forward::Batched(cp.plan_fft_forward(len))
+            Way::Batched(cp.plan_fft_forward(len))
         } else {
-            Forward::PerRow(rp.plan_fft_forward(len))
+            Way::PerRow(rp.plan_fft_forward(len))
         };
         let inverse = if len <= inverse_max {
-            Inverse::Batched(cp.plan_fft_inverse(len))
+            Way::Batched(cp.plan_fft_inverse(len))
         } else {
-            Inverse::PerRow(rp.plan_fft_inverse(len))
+            Way::PerRow(rp.plan_fft_inverse(len))
         };
         ZAxis {
             len,
@@ -101,12 +95,12 @@ impl<T: Real> ZAxis<T> {
     /// Scratch (complex values) the transforms need.
     pub fn scratch_len(&self) -> usize {
         let f = match &self.forward {
-            Forward::PerRow(p) => p.get_scratch_len(),
-            Forward::Batched(p) => p.get_inplace_scratch_len(),
+            Way::PerRow(p) => p.get_scratch_len(),
+            Way::Batched(p) => p.get_inplace_scratch_len(),
         };
         let i = match &self.inverse {
-            Inverse::PerRow(p) => p.get_scratch_len(),
-            Inverse::Batched(p) => p.get_inplace_scratch_len(),
+            Way::PerRow(p) => p.get_scratch_len(),
+            Way::Batched(p) => p.get_inplace_scratch_len(),
         };
         f.max(i)
     }
@@ -114,8 +108,8 @@ impl<T: Real> ZAxis<T> {
     /// Complex values of the batch buffer ([`Self::forward`], [`Self::inverse`]) for up to
     /// `rows` rows.
     pub fn batch_len(&self, rows: usize) -> usize {
-        let batched = matches!(self.forward, Forward::Batched(_))
-            || matches!(self.inverse, Inverse::Batched(_));
+        let batched =
+            matches!(self.forward, Way::Batched(_)) || matches!(self.inverse, Way::Batched(_));
         if batched {
             rows * self.len
         } else {
@@ -134,13 +128,13 @@ impl<T: Real> ZAxis<T> {
     ) {
         let (len, kz) = (self.len, self.len / 2 + 1);
         match &self.forward {
-            Forward::PerRow(r2c) => {
+            Way::PerRow(r2c) => {
                 for (row, out) in real.chunks_exact_mut(len).zip(spec.chunks_exact_mut(kz)) {
                     r2c.process_with_scratch(row, out, scratch)
                         .expect("r2c lengths match the plan");
                 }
             }
-            Forward::Batched(fft) => {
+            Way::Batched(fft) => {
                 let batch = &mut batch[..real.len()];
                 for (c, &r) in batch.iter_mut().zip(real.iter()) {
                     *c = Complex::new(r, T::zero());
@@ -165,7 +159,7 @@ impl<T: Real> ZAxis<T> {
     ) {
         let (len, kz) = (self.len, self.len / 2 + 1);
         match &self.inverse {
-            Inverse::PerRow(c2r) => {
+            Way::PerRow(c2r) => {
                 for (row, out) in spec.chunks_exact_mut(kz).zip(real.chunks_exact_mut(len)) {
                     row[0].im = T::zero();
                     row[kz - 1].im = T::zero();
@@ -173,7 +167,7 @@ impl<T: Real> ZAxis<T> {
                         .expect("c2r lengths match the plan");
                 }
             }
-            Inverse::Batched(ifft) => {
+            Way::Batched(ifft) => {
                 let batch = &mut batch[..real.len()];
                 for (row, full) in spec.chunks_exact(kz).zip(batch.chunks_exact_mut(len)) {
                     full[..kz].copy_from_slice(row);
@@ -242,8 +236,8 @@ mod tests {
     fn short_rows_are_batched_long_ones_per_row() {
         let kinds = |z: ZAxis<f32>| {
             (
-                matches!(z.forward, Forward::Batched(_)),
-                matches!(z.inverse, Inverse::Batched(_)),
+                matches!(z.forward, Way::Batched(_)),
+                matches!(z.inverse, Way::Batched(_)),
             )
         };
         assert_eq!(kinds(ZAxis::plan(16)), (true, true));
