@@ -13,13 +13,14 @@
 
 use crate::cloud::{Point, PointAccess};
 use rayon::prelude::*;
-use std::collections::HashMap;
+use rustc_hash::FxHashMap;
 
 /// Sample points whose nearest-neighbour distances make the median.
 pub const SPACING_SAMPLES: usize = 512;
 
-/// Points per parallel task of the pass over the cloud.
-const CHUNK: usize = 1 << 16;
+/// Points per parallel task of the pass over the cloud (small enough that the scans of the
+/// example pairs, 40 000 points, use both threads).
+const CHUNK: usize = 1 << 13;
 
 /// Median nearest-other-point distance (see the module documentation); 0 when undefined (a
 /// single point, or at least half the sample on duplicated points).
@@ -82,7 +83,7 @@ fn nearest_within_cells<P: PointAccess + ?Sized>(
     pending: &[usize],
     h: f64,
 ) -> Vec<f64> {
-    let mut around: HashMap<[i64; 3], Vec<u32>> = HashMap::new();
+    let mut around: FxHashMap<[i64; 3], Vec<u32>> = FxHashMap::default();
     for (slot, &s) in pending.iter().enumerate() {
         let c = cell(&points.at(sample[s]), h);
         for dx in -1..=1 {

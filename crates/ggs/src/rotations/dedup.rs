@@ -19,7 +19,7 @@ pub fn dedup_geodesic(rotations: &[Matrix3<f64>], tol_deg: f64) -> Vec<usize> {
     let key = |r: &Matrix3<f64>| -> [i64; 3] {
         [r[(0, 0)], r[(1, 1)], r[(2, 2)]].map(|v| (v / cell).floor() as i64)
     };
-    let mut buckets: std::collections::HashMap<[i64; 3], Vec<usize>> = Default::default();
+    let mut buckets: rustc_hash::FxHashMap<[i64; 3], Vec<usize>> = Default::default();
     let mut kept: Vec<usize> = Vec::new();
     for (i, r) in rotations.iter().enumerate() {
         let k = key(r);
