@@ -169,28 +169,25 @@ pub fn local_shapes(
 }
 
 /// Local shapes computed on first use and kept: only points near a correspondence ever pay
-/// for their neighbour search (a low-overlap pair touches a fraction of each cloud). On the
-/// k-NN grid the shapes of a whole cell are computed together (they share their candidates);
-/// clouds the grid cannot bucket fall back to one tree query per point. A shape is a pure
-/// function of the cloud and the point, so which thread computes it first does not matter.
+/// for their neighbour search (a low-overlap pair touches a fraction of each cloud, and an
+/// ICP iteration's inliers, within the 0.25 quantile of the distances, are a quarter of the
+/// overlap). On the k-NN grid, [`LazyShapes::ensure`] computes the shapes a batch of points
+/// needs, cell by cell, gathering each cell's candidates once; a single [`LazyShapes::get`]
+/// of a point not computed yet gathers its cell's candidates for it alone. Clouds the grid
+/// cannot bucket fall back to one tree query per point. A shape is a pure function of the
+/// cloud and the point (the grid answers one point the same whichever others of its cell are
+/// asked with it), so which thread computes it first, and in which batch, does not matter.
 ///
 /// The cache does not hold the cloud: every query passes the same `points` and `index` the
 /// cache was built with.
 pub struct LazyShapes {
     k: usize,
     epsilon: f64,
-    mode: Mode,
-}
-
-enum Mode {
-    Cells {
-        grid: Box<CellGrid>,
-        hint: f64,
-        /// Cell and position in the cell of every point.
-        loc: Vec<(u32, u32)>,
-        cache: Vec<OnceLock<Vec<LocalShape>>>,
-    },
-    Points(Vec<OnceLock<LocalShape>>),
+    /// The grid and its hint (`None`: the tree alone).
+    grid: Option<(Box<CellGrid>, f64)>,
+    /// Cell and position in the cell of every point (empty without a grid).
+    loc: Vec<(u32, u32)>,
+    shapes: Vec<OnceLock<LocalShape>>,
 }
 
 thread_local! {
@@ -201,63 +198,93 @@ impl LazyShapes {
     pub fn new(points: &[Point], index: &PointIndex, k: usize, epsilon: f64) -> Self {
         let grid = median_kth_distance(points, index, k)
             .and_then(|r| CellGrid::new(points, r * KNN_CELL_FACTOR).map(|g| (g, 1.5 * r)));
-        let mode = match grid {
-            Some((grid, hint)) => Mode::Cells {
-                loc: grid.locations(),
-                cache: (0..grid.cells()).map(|_| OnceLock::new()).collect(),
-                grid: Box::new(grid),
-                hint,
-            },
-            None => Mode::Points((0..points.len()).map(|_| OnceLock::new()).collect()),
-        };
-        LazyShapes { k, epsilon, mode }
+        LazyShapes {
+            k,
+            epsilon,
+            loc: grid.as_ref().map_or_else(Vec::new, |(g, _)| g.locations()),
+            grid: grid.map(|(g, hint)| (Box::new(g), hint)),
+            shapes: (0..points.len()).map(|_| OnceLock::new()).collect(),
+        }
     }
 
     /// The shape of point `i` of `points` (the cloud and tree the cache was built for).
     #[inline]
     pub fn get(&self, points: &[Point], index: &PointIndex, i: usize) -> &LocalShape {
-        let (k, epsilon) = (self.k, self.epsilon);
-        match &self.mode {
-            Mode::Cells {
-                grid,
-                hint,
-                loc,
-                cache,
-            } => {
-                let (cell, off) = loc[i];
-                let shapes = cache[cell as usize].get_or_init(|| {
-                    let mut out = Vec::new();
-                    SCRATCH.with(|scratch| {
-                        grid.cell_knn(
-                            cell as usize,
-                            points,
-                            k,
-                            *hint,
-                            index,
-                            &mut scratch.borrow_mut(),
-                            &mut out,
-                            |i, _, nbrs| neighbourhood_shape(&points[i], nbrs, epsilon),
-                        )
-                    });
-                    out
-                });
-                &shapes[off as usize]
+        self.shapes[i].get_or_init(|| match &self.grid {
+            Some(_) => {
+                let (cell, off) = self.loc[i];
+                let mut out = Vec::with_capacity(1);
+                self.cell_shapes(points, index, cell as usize, &[off as usize], &mut out);
+                out[0].1
             }
-            Mode::Points(cache) => cache[i].get_or_init(|| {
+            None => {
                 let p = &points[i];
                 let mut m = Moments::new(p);
-                index.for_k_nearest(p, k, |j| m.push(&points[j]));
-                m.shape(epsilon)
-            }),
+                index.for_k_nearest(p, self.k, |j| m.push(&points[j]));
+                m.shape(self.epsilon)
+            }
+        })
+    }
+
+    /// Compute the shapes of the points `needed` not computed yet (duplicates allowed),
+    /// gathering the candidates of each grid cell once for all of them.
+    pub fn ensure(&self, points: &[Point], index: &PointIndex, needed: &[usize]) {
+        if self.grid.is_none() {
+            for &i in needed {
+                self.get(points, index, i);
+            }
+            return;
         }
+        let mut todo: Vec<(u32, u32)> = needed
+            .iter()
+            .filter(|&&i| self.shapes[i].get().is_none())
+            .map(|&i| self.loc[i])
+            .collect();
+        todo.sort_unstable();
+        todo.dedup();
+        let mut out = Vec::new();
+        let mut offsets = Vec::new();
+        for group in todo.chunk_by(|a, b| a.0 == b.0) {
+            offsets.clear();
+            offsets.extend(group.iter().map(|&(_, off)| off as usize));
+            out.clear();
+            self.cell_shapes(points, index, group[0].0 as usize, &offsets, &mut out);
+            for &(i, shape) in &out {
+                // Another thread may have computed it meanwhile: the same value.
+                let _ = self.shapes[i].set(shape);
+            }
+        }
+    }
+
+    /// The shapes of the points at `offsets` of grid cell `cell`, with their indices.
+    fn cell_shapes(
+        &self,
+        points: &[Point],
+        index: &PointIndex,
+        cell: usize,
+        offsets: &[usize],
+        out: &mut Vec<(usize, LocalShape)>,
+    ) {
+        let (grid, hint) = self.grid.as_ref().expect("a grid");
+        let epsilon = self.epsilon;
+        SCRATCH.with(|scratch| {
+            grid.cell_knn_at(
+                cell,
+                offsets.iter().copied(),
+                points,
+                self.k,
+                *hint,
+                index,
+                &mut scratch.borrow_mut(),
+                out,
+                |i, _, nbrs| (i, neighbourhood_shape(&points[i], nbrs, epsilon)),
+            )
+        });
     }
 
     /// How many shapes were computed so far.
     pub fn computed(&self) -> usize {
-        match &self.mode {
-            Mode::Cells { cache, .. } => cache.iter().filter_map(|c| c.get()).map(Vec::len).sum(),
-            Mode::Points(cache) => cache.iter().filter(|c| c.get().is_some()).count(),
-        }
+        self.shapes.iter().filter(|c| c.get().is_some()).count()
     }
 }
 
@@ -314,6 +341,38 @@ mod tests {
             assert!((a.covariance - b.covariance).amax() < 1e-12, "{i}");
         }
         assert_eq!(lazy.computed(), 200);
+    }
+
+    /// A shape is the same bit for bit whether computed alone, in a batch of some points of
+    /// its cell, or with the whole cell by the eager k-NN map.
+    #[test]
+    fn batched_shapes_equal_single_and_eager_ones() {
+        let mut next = crate::test_rng::uniform(17);
+        let pts: Vec<Point> = (0..3000)
+            .map(|_| {
+                let (u, v) = (next(), next());
+                [u, v, 0.1 * (6.0 * u).sin() + 0.002 * next()]
+            })
+            .collect();
+        let idx = PointIndex::new(&pts);
+        let eager = local_shapes(&pts, &idx, 20, 1e-3);
+        let single = LazyShapes::new(&pts, &idx, 20, 1e-3);
+        let batched = LazyShapes::new(&pts, &idx, 20, 1e-3);
+        assert!(batched.grid.is_some(), "the test must exercise the grid");
+        // Every third point, with repeats, in two batches.
+        let needed: Vec<usize> = (0..3000).step_by(3).chain((0..600).step_by(7)).collect();
+        batched.ensure(&pts, &idx, &needed[..500]);
+        batched.ensure(&pts, &idx, &needed);
+        let mut unique = needed.clone();
+        unique.sort_unstable();
+        unique.dedup();
+        assert_eq!(batched.computed(), unique.len());
+        for &i in &needed {
+            let (a, b) = (batched.get(&pts, &idx, i), single.get(&pts, &idx, i));
+            assert_eq!(a, b, "{i}");
+            assert_eq!(a, &eager[i], "{i}");
+        }
+        assert_eq!(batched.computed(), unique.len(), "ensure computed them all");
     }
 
     #[test]

@@ -342,16 +342,36 @@ impl CellGrid {
     }
 
     /// `f(i, indices, points)` for every point `i` of `cell`, in the cell's order (see
-    /// [`Self::locations`]), with the original indices and the coordinates of its `k`
-    /// nearest points (itself included; fewer if the cloud is smaller), in an order fixed by
-    /// the data. `points` and `tree` must hold the points the grid was built from; the tree
-    /// answers the points the grid cannot certify. `hint` is a typical k-th-neighbour
-    /// distance (a little above the median): it only speeds the search up, the answer does
-    /// not depend on it.
+    /// [`Self::locations`]): [`Self::cell_knn_at`] of all its positions.
     #[allow(clippy::too_many_arguments)]
     pub fn cell_knn<T>(
         &self,
         cell: usize,
+        points: &[Point],
+        k: usize,
+        hint: f64,
+        tree: &PointIndex,
+        scratch: &mut KnnScratch,
+        out: &mut Vec<T>,
+        f: impl Fn(usize, &[u32], &[Point]) -> T,
+    ) {
+        let len = self.range(cell).len();
+        self.cell_knn_at(cell, 0..len, points, k, hint, tree, scratch, out, f)
+    }
+
+    /// `f(i, indices, points)` for the points of `cell` at `positions` (offsets in the cell's
+    /// order, see [`Self::locations`]), with the original indices and the coordinates of its
+    /// `k` nearest points (itself included; fewer if the cloud is smaller), in an order fixed
+    /// by the data: a point's answer does not depend on which other positions are asked for.
+    /// The cell's candidates (the 3 × 3 × 3 block around it) are gathered once. `points` and
+    /// `tree` must hold the points the grid was built from; the tree answers the points the
+    /// grid cannot certify. `hint` is a typical k-th-neighbour distance (a little above the
+    /// median): it only speeds the search up, the answer does not depend on it.
+    #[allow(clippy::too_many_arguments)]
+    pub fn cell_knn_at<T>(
+        &self,
+        cell: usize,
+        positions: impl IntoIterator<Item = usize>,
         points: &[Point],
         k: usize,
         hint: f64,
@@ -379,7 +399,13 @@ impl CellGrid {
         let (block_lo, block_hi) = self.gather_block(cell, cand_pts, cand_idx);
         keys.resize(cand_pts.len(), 0);
         cand_d2.resize(cand_pts.len(), 0.0);
-        for s in self.range(cell) {
+        let cell_points = self.range(cell);
+        for off in positions {
+            let s = cell_points.start + off;
+            debug_assert!(
+                s < cell_points.end,
+                "cell_knn_at: a position outside the cell"
+            );
             let q = &self.sorted[s];
             let i = self.order[s] as usize;
             nbr_idx.clear();

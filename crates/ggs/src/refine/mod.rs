@@ -553,8 +553,6 @@ fn accumulate(
     cfg: &RefineConfig,
     hints: &mut [u32],
 ) -> (Stats, NormalEquations, KabschSums) {
-    let (r, tt) = (t.rotation, t.translation);
-    let tgt = &pair.target.points;
     let parts: Vec<(Stats, NormalEquations, KabschSums)> = pair
         .source
         .points
@@ -562,36 +560,18 @@ fn accumulate(
         .zip(hints.par_chunks_mut(CHUNK))
         .enumerate()
         .map(|(ci, (chunk, hint))| {
-            let mut st = Stats::default();
-            let mut ne = NormalEquations::default();
-            let mut ks = KabschSums::default();
-            for (k, p) in chunk.iter().enumerate() {
-                let pm = r * v3(p) + tt;
-                let near = (hint[k] != NO_HINT).then(|| &tgt[hint[k] as usize]);
-                let found = tsearch.nearest_near(&[pm.x, pm.y, pm.z], near);
-                hint[k] = found.map_or(NO_HINT, |(j, _)| u32::try_from(j).unwrap_or(NO_HINT));
-                let Some((j, dd)) = found else {
-                    continue;
-                };
-                st.inliers += 1;
-                st.sq_sum += dd;
-                let q = v3(&tgt[j]);
-                match cfg.method {
-                    Method::P2p => ks.push(&pm, &q, cfg.kernel.weight(dd.sqrt())),
-                    Method::P2plane => {
-                        let n = &pair.target.shape(j).normal;
-                        let res = n.dot(&(pm - q)).abs();
-                        ne.add_point_to_plane(&pm, &q, n, cfg.kernel.weight(res));
-                    }
-                    Method::Gicp => {
-                        let cs = &pair.source.shape(ci * CHUNK + k).covariance;
-                        let c = pair.target.shape(j).covariance + r * cs * r.transpose();
-                        let m = c.try_inverse().unwrap_or_else(Matrix3::identity);
-                        ne.add_gicp(&pm, &q, &m, cfg.kernel.weight(dd.sqrt()));
-                    }
-                }
+            // The chunk's correspondences first, then the local shapes they need in one
+            // batch per cloud (each grid cell's candidates gathered once), then the sums.
+            let found = correspondences(pair, tsearch, t, ci * CHUNK, chunk, hint);
+            if cfg.method == Method::Gicp {
+                let needed: Vec<usize> = found.iter().map(|f| f.source).collect();
+                pair.source.ensure_shapes(&needed);
             }
-            (st, ne, ks)
+            if cfg.method != Method::P2p {
+                let needed: Vec<usize> = found.iter().map(|f| f.target).collect();
+                pair.target.ensure_shapes(&needed);
+            }
+            chunk_sums(pair, t, cfg, &found)
         })
         .collect();
     let mut st = Stats::default();
@@ -602,6 +582,79 @@ fn accumulate(
         st.sq_sum += s.sq_sum;
         ne.add(n);
         ks.add(k);
+    }
+    (st, ne, ks)
+}
+
+/// A source point within the correspondence distance of a target point.
+struct Correspondence {
+    source: usize,
+    target: usize,
+    /// Squared distance.
+    dd: f64,
+    /// The source point moved by the current transform.
+    moved: Vector3<f64>,
+}
+
+/// The correspondences of the source points `first..first + chunk.len()` at `t`, in order,
+/// with their hints updated (see [`accumulate`]).
+fn correspondences(
+    pair: &PreparedPair,
+    tsearch: &RadiusSearch,
+    t: &Rigid,
+    first: usize,
+    chunk: &[Point],
+    hint: &mut [u32],
+) -> Vec<Correspondence> {
+    let tgt = &pair.target.points;
+    let mut found = Vec::new();
+    for (k, p) in chunk.iter().enumerate() {
+        let pm = t.rotation * v3(p) + t.translation;
+        let near = (hint[k] != NO_HINT).then(|| &tgt[hint[k] as usize]);
+        let nearest = tsearch.nearest_near(&[pm.x, pm.y, pm.z], near);
+        hint[k] = nearest.map_or(NO_HINT, |(j, _)| u32::try_from(j).unwrap_or(NO_HINT));
+        if let Some((j, dd)) = nearest {
+            found.push(Correspondence {
+                source: first + k,
+                target: j,
+                dd,
+                moved: pm,
+            });
+        }
+    }
+    found
+}
+
+/// The sums of one chunk's correspondences, in order.
+fn chunk_sums(
+    pair: &PreparedPair,
+    t: &Rigid,
+    cfg: &RefineConfig,
+    found: &[Correspondence],
+) -> (Stats, NormalEquations, KabschSums) {
+    let r = t.rotation;
+    let mut st = Stats::default();
+    let mut ne = NormalEquations::default();
+    let mut ks = KabschSums::default();
+    for c in found {
+        let (pm, dd) = (c.moved, c.dd);
+        st.inliers += 1;
+        st.sq_sum += dd;
+        let q = v3(&pair.target.points[c.target]);
+        match cfg.method {
+            Method::P2p => ks.push(&pm, &q, cfg.kernel.weight(dd.sqrt())),
+            Method::P2plane => {
+                let n = &pair.target.shape(c.target).normal;
+                let res = n.dot(&(pm - q)).abs();
+                ne.add_point_to_plane(&pm, &q, n, cfg.kernel.weight(res));
+            }
+            Method::Gicp => {
+                let cs = &pair.source.shape(c.source).covariance;
+                let m = pair.target.shape(c.target).covariance + r * cs * r.transpose();
+                let m = m.try_inverse().unwrap_or_else(Matrix3::identity);
+                ne.add_gicp(&pm, &q, &m, cfg.kernel.weight(dd.sqrt()));
+            }
+        }
     }
     (st, ne, ks)
 }

@@ -65,6 +65,15 @@ impl PreparedCloud {
             .get(&self.points, index, i)
     }
 
+    /// Compute the local shapes of the points `needed` now, together (see
+    /// [`LazyShapes::ensure`]); [`Self::shape`] then only reads them.
+    pub fn ensure_shapes(&self, needed: &[usize]) {
+        let index = self.index();
+        self.shapes
+            .get_or_init(|| LazyShapes::new(&self.points, index, self.neighbors, self.epsilon))
+            .ensure(&self.points, index, needed);
+    }
+
     /// Build the tree and the shape cache now (both are built on first use otherwise).
     pub fn prepare(&self) {
         self.shape(0);
