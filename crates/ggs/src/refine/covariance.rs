@@ -187,7 +187,10 @@ pub struct LazyShapes {
     grid: Option<(Box<CellGrid>, f64)>,
     /// Cell and position in the cell of every point (empty without a grid).
     loc: Vec<(u32, u32)>,
-    shapes: Vec<OnceLock<LocalShape>>,
+    /// The shapes' slots of each grid cell, allocated on the cell's first use (memory
+    /// follows the part of the cloud refinement touches); without a grid, one cell of all
+    /// the points.
+    slots: Vec<OnceLock<Box<[OnceLock<LocalShape>]>>>,
 }
 
 thread_local! {
@@ -198,19 +201,42 @@ impl LazyShapes {
     pub fn new(points: &[Point], index: &PointIndex, k: usize, epsilon: f64) -> Self {
         let grid = median_kth_distance(points, index, k)
             .and_then(|r| CellGrid::new(points, r * KNN_CELL_FACTOR).map(|g| (g, 1.5 * r)));
+        let slots = match &grid {
+            Some((g, _)) => (0..g.cells()).map(|_| OnceLock::new()).collect(),
+            None => vec![OnceLock::from(
+                (0..points.len())
+                    .map(|_| OnceLock::new())
+                    .collect::<Box<[_]>>(),
+            )],
+        };
         LazyShapes {
             k,
             epsilon,
             loc: grid.as_ref().map_or_else(Vec::new, |(g, _)| g.locations()),
             grid: grid.map(|(g, hint)| (Box::new(g), hint)),
-            shapes: (0..points.len()).map(|_| OnceLock::new()).collect(),
+            slots,
+        }
+    }
+
+    /// The slot of point `i`'s shape.
+    #[inline]
+    fn slot(&self, i: usize) -> &OnceLock<LocalShape> {
+        match &self.grid {
+            Some((grid, _)) => {
+                let (cell, off) = self.loc[i];
+                let cell = cell as usize;
+                let slots = self.slots[cell]
+                    .get_or_init(|| (0..grid.cell_len(cell)).map(|_| OnceLock::new()).collect());
+                &slots[off as usize]
+            }
+            None => &self.slots[0].get().expect("allocated when built")[i],
         }
     }
 
     /// The shape of point `i` of `points` (the cloud and tree the cache was built for).
     #[inline]
     pub fn get(&self, points: &[Point], index: &PointIndex, i: usize) -> &LocalShape {
-        self.shapes[i].get_or_init(|| match &self.grid {
+        self.slot(i).get_or_init(|| match &self.grid {
             Some(_) => {
                 let (cell, off) = self.loc[i];
                 let mut out = Vec::with_capacity(1);
@@ -237,7 +263,7 @@ impl LazyShapes {
         }
         let mut todo: Vec<(u32, u32)> = needed
             .iter()
-            .filter(|&&i| self.shapes[i].get().is_none())
+            .filter(|&&i| self.slot(i).get().is_none())
             .map(|&i| self.loc[i])
             .collect();
         todo.sort_unstable();
@@ -251,7 +277,7 @@ impl LazyShapes {
             self.cell_shapes(points, index, group[0].0 as usize, &offsets, &mut out);
             for &(i, shape) in &out {
                 // Another thread may have computed it meanwhile: the same value.
-                let _ = self.shapes[i].set(shape);
+                let _ = self.slot(i).set(shape);
             }
         }
     }
@@ -284,7 +310,11 @@ impl LazyShapes {
 
     /// How many shapes were computed so far.
     pub fn computed(&self) -> usize {
-        self.shapes.iter().filter(|c| c.get().is_some()).count()
+        self.slots
+            .iter()
+            .filter_map(OnceLock::get)
+            .map(|cell| cell.iter().filter(|c| c.get().is_some()).count())
+            .sum()
     }
 }
 

@@ -180,6 +180,11 @@ impl CellGrid {
         self.coords.len()
     }
 
+    /// Number of points in occupied cell `cell`.
+    pub fn cell_len(&self, cell: usize) -> usize {
+        self.range(cell).len()
+    }
+
     /// Cell coordinates of a point of the cloud (clamped into the box against rounding).
     #[inline]
     fn cell_of(&self, p: &Point) -> [u64; 3] {
