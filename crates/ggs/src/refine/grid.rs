@@ -346,24 +346,6 @@ impl CellGrid {
         (lo, hi)
     }
 
-    /// `f(i, indices, points)` for every point `i` of `cell`, in the cell's order (see
-    /// [`Self::locations`]): [`Self::cell_knn_at`] of all its positions.
-    #[allow(clippy::too_many_arguments)]
-    pub fn cell_knn<T>(
-        &self,
-        cell: usize,
-        points: &[Point],
-        k: usize,
-        hint: f64,
-        tree: &PointIndex,
-        scratch: &mut KnnScratch,
-        out: &mut Vec<T>,
-        f: impl Fn(usize, &[u32], &[Point]) -> T,
-    ) {
-        let len = self.range(cell).len();
-        self.cell_knn_at(cell, 0..len, points, k, hint, tree, scratch, out, f)
-    }
-
     /// `f(i, indices, points)` for the points of `cell` at `positions` (offsets in the cell's
     /// order, see [`Self::locations`]), with the original indices and the coordinates of its
     /// `k` nearest points (itself included; fewer if the cloud is smaller), in an order fixed
@@ -386,7 +368,7 @@ impl CellGrid {
         f: impl Fn(usize, &[u32], &[Point]) -> T,
     ) {
         let n = self.order.len();
-        debug_assert_eq!(points.len(), n, "cell_knn: the grid's points");
+        debug_assert_eq!(points.len(), n, "cell_knn_at: the grid's points");
         let k = k.min(n).max(1);
         let hint2 = if hint > 0.0 {
             hint * hint
@@ -448,7 +430,7 @@ impl CellGrid {
         }
     }
 
-    /// [`Self::cell_knn`] for every point of the cloud, in parallel over cells; returned in
+    /// [`Self::cell_knn_at`] for every point of the cloud, in parallel over cells; returned in
     /// the cloud's order.
     pub fn map_knn<T, F>(
         &self,
@@ -471,7 +453,8 @@ impl CellGrid {
                 let mut out = Vec::new();
                 let mut scratch = KnnScratch::default();
                 for &cell in cells {
-                    self.cell_knn(cell, points, k, hint, tree, &mut scratch, &mut out, &f);
+                    let all = 0..self.cell_len(cell);
+                    self.cell_knn_at(cell, all, points, k, hint, tree, &mut scratch, &mut out, &f);
                 }
                 out
             })
@@ -492,7 +475,7 @@ impl CellGrid {
     }
 }
 
-/// Reusable buffers of [`CellGrid::cell_knn`].
+/// Reusable buffers of [`CellGrid::cell_knn_at`].
 #[derive(Default)]
 pub struct KnnScratch {
     cand_pts: Vec<Point>,
