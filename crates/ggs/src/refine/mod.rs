@@ -758,20 +758,23 @@ fn quality(
     let parts: Vec<(usize, f64, Matrix6<f64>)> = moved
         .par_chunks(CHUNK)
         .map(|chunk| {
-            let mut n_in = 0;
+            let found: Vec<(&Point, usize, f64)> = chunk
+                .iter()
+                .filter_map(|p| tsearch.nearest(p).map(|(j, dd)| (p, j, dd)))
+                .collect();
+            // The target normals of the chunk in one batch (see `accumulate`).
+            let needed: Vec<usize> = found.iter().map(|f| f.1).collect();
+            pair.target.ensure_shapes(&needed);
             let mut sq = 0.0;
             let mut h = Matrix6::zeros();
-            for p in chunk {
-                if let Some((j, dd)) = tsearch.nearest(p) {
-                    n_in += 1;
-                    sq += dd;
-                    let n = pair.target.shape(j).normal;
-                    let a = v3(p).cross(&n) / radius;
-                    let jv = nalgebra::Vector6::new(a.x, a.y, a.z, n.x, n.y, n.z);
-                    h += jv * jv.transpose();
-                }
+            for &(p, j, dd) in &found {
+                sq += dd;
+                let n = pair.target.shape(j).normal;
+                let a = v3(p).cross(&n) / radius;
+                let jv = nalgebra::Vector6::new(a.x, a.y, a.z, n.x, n.y, n.z);
+                h += jv * jv.transpose();
             }
-            (n_in, sq, h)
+            (found.len(), sq, h)
         })
         .collect();
     let (mut inliers, mut sq, mut h) = (0usize, 0.0, Matrix6::zeros());
