@@ -96,10 +96,12 @@ fn nearest_within_cells<P: PointAccess + ?Sized>(
         }
     }
     let n = points.count();
-    let parts: Vec<Vec<f64>> = (0..n.div_ceil(CHUNK))
+    let none = || vec![f64::INFINITY; pending.len()];
+    // Per-worker minima merged pairwise: a minimum is the same in any order, and no
+    // per-chunk vector is kept.
+    (0..n.div_ceil(CHUNK))
         .into_par_iter()
-        .map(|ci| {
-            let mut best = vec![f64::INFINITY; pending.len()];
+        .fold(none, |mut best, ci| {
             for j in ci * CHUNK..n.min((ci + 1) * CHUNK) {
                 let p = points.at(j);
                 let Some(slots) = around.get(&cell(&p, h)) else {
@@ -119,14 +121,12 @@ fn nearest_within_cells<P: PointAccess + ?Sized>(
             }
             best
         })
-        .collect();
-    let mut best = vec![f64::INFINITY; pending.len()];
-    for part in &parts {
-        for (b, &d) in best.iter_mut().zip(part) {
-            *b = b.min(d);
-        }
-    }
-    best
+        .reduce(none, |mut a, b| {
+            for (x, y) in a.iter_mut().zip(b) {
+                *x = x.min(y);
+            }
+            a
+        })
 }
 
 #[cfg(test)]

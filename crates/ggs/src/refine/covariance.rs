@@ -254,17 +254,22 @@ impl LazyShapes {
 
     /// Compute the shapes of the points `needed` not computed yet (duplicates allowed),
     /// gathering the candidates of each grid cell once for all of them.
-    pub fn ensure(&self, points: &[Point], index: &PointIndex, needed: &[usize]) {
+    pub fn ensure(
+        &self,
+        points: &[Point],
+        index: &PointIndex,
+        needed: impl IntoIterator<Item = usize>,
+    ) {
         if self.grid.is_none() {
-            for &i in needed {
+            for i in needed {
                 self.get(points, index, i);
             }
             return;
         }
         let mut todo: Vec<(u32, u32)> = needed
-            .iter()
-            .filter(|&&i| self.slot(i).get().is_none())
-            .map(|&i| self.loc[i])
+            .into_iter()
+            .filter(|&i| self.slot(i).get().is_none())
+            .map(|i| self.loc[i])
             .collect();
         todo.sort_unstable();
         todo.dedup();
@@ -391,8 +396,8 @@ mod tests {
         assert!(batched.grid.is_some(), "the test must exercise the grid");
         // Every third point, with repeats, in two batches.
         let needed: Vec<usize> = (0..3000).step_by(3).chain((0..600).step_by(7)).collect();
-        batched.ensure(&pts, &idx, &needed[..500]);
-        batched.ensure(&pts, &idx, &needed);
+        batched.ensure(&pts, &idx, needed[..500].iter().copied());
+        batched.ensure(&pts, &idx, needed.iter().copied());
         let mut unique = needed.clone();
         unique.sort_unstable();
         unique.dedup();

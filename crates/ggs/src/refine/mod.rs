@@ -564,12 +564,10 @@ fn accumulate(
             // batch per cloud (each grid cell's candidates gathered once), then the sums.
             let found = correspondences(pair, tsearch, t, ci * CHUNK, chunk, hint);
             if cfg.method == Method::Gicp {
-                let needed: Vec<usize> = found.iter().map(|f| f.source).collect();
-                pair.source.ensure_shapes(&needed);
+                pair.source.ensure_shapes(found.iter().map(|f| f.source));
             }
             if cfg.method != Method::P2p {
-                let needed: Vec<usize> = found.iter().map(|f| f.target).collect();
-                pair.target.ensure_shapes(&needed);
+                pair.target.ensure_shapes(found.iter().map(|f| f.target));
             }
             chunk_sums(pair, t, cfg, &found)
         })
@@ -763,8 +761,7 @@ fn quality(
                 .filter_map(|p| tsearch.nearest(p).map(|(j, dd)| (p, j, dd)))
                 .collect();
             // The target normals of the chunk in one batch (see `accumulate`).
-            let needed: Vec<usize> = found.iter().map(|f| f.1).collect();
-            pair.target.ensure_shapes(&needed);
+            pair.target.ensure_shapes(found.iter().map(|f| f.1));
             let mut sq = 0.0;
             let mut h = Matrix6::zeros();
             for &(p, j, dd) in &found {

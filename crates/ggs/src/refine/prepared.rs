@@ -67,7 +67,7 @@ impl PreparedCloud {
 
     /// Compute the local shapes of the points `needed` now, together (see
     /// [`LazyShapes::ensure`]); [`Self::shape`] then only reads them.
-    pub fn ensure_shapes(&self, needed: &[usize]) {
+    pub fn ensure_shapes(&self, needed: impl IntoIterator<Item = usize>) {
         let index = self.index();
         self.shapes
             .get_or_init(|| LazyShapes::new(&self.points, index, self.neighbors, self.epsilon))
