@@ -1,10 +1,14 @@
 //! What the large buffers of a search cost, and the error for a search that does not fit.
 
+use super::blocks::Coords;
 use super::geometry::Geometry;
 use super::sized::SizedPlans;
 use super::voxel;
 use crate::error::GgsError;
 use crate::memory;
+
+/// Bytes per source point: the centred triple and its coordinate arrays.
+const POINT_BYTES: u64 = 24 + Coords::BYTES_PER_POINT as u64;
 
 /// What the large buffers of a search cost, and which voxel size makes them fit.
 pub(super) struct MemoryModel {
@@ -19,7 +23,7 @@ pub(super) struct MemoryModel {
 impl MemoryModel {
     /// Kernel spectra (f32 and f64, and the smaller f32 plans of [`SizedPlans`]), one
     /// workspace per thread (the f64 one, the larger of the two a worker holds at a time),
-    /// kernel occupancy and the centred points (as triples and as coordinate arrays).
+    /// kernel occupancy and the centred points ([`POINT_BYTES`] each).
     pub fn bytes(&self, geo: &Geometry) -> u64 {
         let cells = geo
             .kernel_dims
@@ -30,7 +34,7 @@ impl MemoryModel {
             .saturating_add(SizedPlans::bytes_bound(geo))
             .saturating_add((self.threads as u64).saturating_mul(geo.workspace_bytes(8)))
             .saturating_add(cells)
-            .saturating_add((self.points as u64).saturating_mul(48))
+            .saturating_add((self.points as u64).saturating_mul(POINT_BYTES))
     }
 
     /// Upper bound of `bytes` at voxel `s`, from the source's bounding sphere.

@@ -4,7 +4,8 @@
 //! The stages, in the order one search runs them ([`coarse_register`]):
 //!
 //! 1. [`source`]: the source's representatives (dense clouds) and [`rotated::RotatableCloud`],
-//!    the centred source prepared for many rotations;
+//!    the centred source prepared for many rotations (its voxelization runs in the vector
+//!    blocks of the private module `blocks`);
 //! 2. [`extents`]: the exact box of every rotated copy, hence its grid and the FFT
 //!    [`Geometry`](cpu::Geometry);
 //! 3. [`voxel`]: the target's occupancy (the kernel) and the voxel arithmetic both sides share;
@@ -32,6 +33,7 @@
 //! voxel size only the best and their neighbours, in rounds that look further while the
 //! winner ranks in the lower half of what was kept (docs/performance.md).
 
+mod blocks;
 pub mod config;
 pub mod correlator;
 pub mod cpu;

@@ -118,6 +118,11 @@ impl Correlator for CpuPlan {
         let (kept, again): (Vec<usize>, Vec<usize>) =
             (0..indices.len()).partition(|&i| candidates[i].offsets().is_some());
         let pick = |from: &[usize]| from.iter().map(|&i| indices[i]).collect::<Vec<_>>();
+        tracing::debug!(
+            at_candidates = kept.len(),
+            in_f64 = again.len(),
+            "exact re-scoring"
+        );
         let (sparse, mut times) = run_pass(ctl, src, approx, &pick(&kept), |c, ws, slot| {
             let offsets = candidates[kept[slot]].offsets().expect("kept");
             c.exact_among(ws, kernel, offsets)

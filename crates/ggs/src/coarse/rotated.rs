@@ -9,15 +9,11 @@
 //! point order (the coarse level's thinning of these points does, in the last bits of its
 //! means).
 
+pub use super::blocks::dot_row;
+use super::blocks::{Coords, ExactPath, RotationBlocks};
 pub use super::grid_view::GridView;
 use super::grid_view::Real;
 use crate::cloud::{Cloud, Point};
-
-/// `row · p`, the one expression used for every rotated coordinate.
-#[inline(always)]
-pub fn dot_row(row: &[f64; 3], p: &Point) -> f64 {
-    row[0] * p[0] + row[1] * p[1] + row[2] * p[2]
-}
 
 /// Divisions per axis of the cluster grid over the cloud's box: `∛n / 2.5` within
 /// `[8, 32]`, so about `n^(2/3) / 4` clusters on a surface. The extents' cost is one
@@ -46,14 +42,8 @@ pub struct RotatableCloud {
     pub centroid: Point,
     /// `X − c_x`, grouped by cluster.
     pub points: Vec<Point>,
-    /// The same points as three coordinate arrays (for the vectorized voxelization).
-    xs: Vec<f64>,
-    ys: Vec<f64>,
-    zs: Vec<f64>,
-    /// The same coordinates rounded to f32 (for the single-precision voxelization).
-    xs32: Vec<f32>,
-    ys32: Vec<f32>,
-    zs32: Vec<f32>,
+    /// The same points as coordinate arrays (the extents and the voxelization).
+    coords: Coords,
     /// `max |x| + |y| + |z|` over the centred points: bounds every rotated coordinate.
     scale: f64,
     centres: Centres,
@@ -117,12 +107,7 @@ impl RotatableCloud {
             .fold(0.0, f64::max);
         RotatableCloud {
             centroid: c,
-            xs: points.iter().map(|p| p[0]).collect(),
-            ys: points.iter().map(|p| p[1]).collect(),
-            zs: points.iter().map(|p| p[2]).collect(),
-            xs32: points.iter().map(|p| p[0] as f32).collect(),
-            ys32: points.iter().map(|p| p[1] as f32).collect(),
-            zs32: points.iter().map(|p| p[2] as f32).collect(),
+            coords: Coords::new(&points),
             points,
             centres,
             scale,
@@ -193,9 +178,9 @@ impl RotatableCloud {
     fn cluster_range(&self, row: &[f64; 3], i: usize, lo: f64, hi: f64) -> (f64, f64) {
         let span = self.centres.span[i].0..self.centres.span[i].1;
         let (xs, ys, zs) = (
-            &self.xs[span.clone()],
-            &self.ys[span.clone()],
-            &self.zs[span],
+            &self.coords.xs[span.clone()],
+            &self.coords.ys[span.clone()],
+            &self.coords.zs[span],
         );
         let mut lo4 = [lo; 4];
         let mut hi4 = [hi; 4];
@@ -218,94 +203,6 @@ impl RotatableCloud {
     }
 }
 
-/// Points per vectorized block of [`RotatableCloud::voxelize`] (two AVX-512 registers of
-/// f64: two independent dependency chains).
-const LANES: usize = 16;
-
-/// A float the vector blocks of the voxelization run in (f32 or f64).
-trait BlockFloat: Real {
-    /// `1.5·2^(p−1)` for `p` mantissa bits (`1.5·2^52` for f64, `1.5·2^23` for f32):
-    /// `(v + ROUND) − ROUND` is `v` rounded to the nearest integer for `|v| < 2^(p−2)`.
-    const ROUND: Self;
-    /// The flat index `self` (a whole number the float holds exactly) as u32.
-    fn index(self) -> u32;
-}
-
-impl BlockFloat for f64 {
-    const ROUND: f64 = 6_755_399_441_055_744.0;
-    #[inline(always)]
-    fn index(self) -> u32 {
-        self as u32
-    }
-}
-
-impl BlockFloat for f32 {
-    const ROUND: f32 = 12_582_912.0;
-    /// Through i32, a vector conversion; a clear lane's index lies in `[0, 2^24)`.
-    #[inline(always)]
-    fn index(self) -> u32 {
-        self as i32 as u32
-    }
-}
-
-/// One rotation's constants for the vector blocks in `F`: rows, minimum and `1/s` in `F`,
-/// and the tolerance `abs[d] + rel·v` within which a cell coordinate `v` counts as near a
-/// cell boundary (those points take the exact quotient).
-///
-/// - f64 ([`Blocks::double`]): `1e-9 + 8ε·v`, the slack of [`voxel::cell_fast`](super::voxel::cell_fast).
-/// - f32 ([`Blocks::single`]): with `u = 2^−24` (f32's unit roundoff), rows `|r_i| ≤ 1`,
-///   `S = |x| + |y| + |z| ≤ scale` and `v = (r·p − min)/s` the exact cell coordinate, the f32
-///   value `v'` of `((r'·p') − min')·inv'` (every input rounded to f32 once) satisfies
-///   `|v' − v| ≤ (9·u·scale + 4·u·|min|)/s`: the inputs' rounding `2u·S`, the three products
-///   and two sums `3u·S`, the subtraction and `min`'s rounding `u·(S + 2|min|)`, the product
-///   by the rounded `1/s` `2u·|v|` with `|v| ≤ (S + |min|)/s`. The tolerance is twice that
-///   (`32u·(scale + |min|)/s`), so a point farther than it from every cell boundary in f32
-///   has the cell of the exact quotient; the others (about 6 tolerances' worth of the
-///   points: 0.1 % at 64 cells a side) take the exact path, so the occupancy is the same bit
-///   for bit.
-struct Blocks<F> {
-    rows: [[F; 3]; 3],
-    min: [F; 3],
-    inv: F,
-    abs: [F; 3],
-    rel: F,
-}
-
-impl Blocks<f64> {
-    /// The f64 constants of rotation `r`, minimum `min` and `inv = 1/s`.
-    fn double(r: &[[f64; 3]; 3], min: &Point, inv: f64) -> Self {
-        Blocks {
-            rows: *r,
-            min: *min,
-            inv,
-            abs: [1e-9; 3],
-            rel: 8.0 * f64::EPSILON,
-        }
-    }
-}
-
-impl Blocks<f32> {
-    /// The f32 constants for rotation `r`, minimum `min` and voxel `s`, or `None` when f32
-    /// cannot serve: a grid of 2^24 cells or more (flat indices would not be exact in f32),
-    /// coordinates of 2^21 cells or more, or a tolerance of a tenth of a cell or more.
-    fn single(r: &[[f64; 3]; 3], min: &Point, s: f64, scale: f64, cells: usize) -> Option<Self> {
-        const U: f64 = f32::EPSILON as f64 / 2.0;
-        let inv = 1.0 / s;
-        let reach: [f64; 3] = std::array::from_fn(|d| (scale + min[d].abs()) * inv);
-        let tol = reach.map(|x| 32.0 * U * x);
-        let fits = cells < 1 << 24
-            && reach.iter().all(|&x| x < (1u32 << 21) as f64)
-            && tol.iter().all(|&t| t < 0.1);
-        fits.then(|| Blocks {
-            rows: r.map(|row| row.map(|x| x as f32)),
-            min: min.map(|x| x as f32),
-            inv: inv as f32,
-            abs: tol.map(|t| t as f32),
-            rel: 0.0,
-        })
-    }
-}
-
 impl RotatableCloud {
     /// Voxelize the rotated cloud: for every point `p`, mark the cell
     /// `floor((R·p − min) / s)` of `grid` with 1.
@@ -313,13 +210,8 @@ impl RotatableCloud {
     /// `min` must be the per-axis minimum of `R·p` computed by [`RotatableCloud::range`] (the
     /// same float expression, so every coordinate is ≥ 0) and the grid must hold every cell.
     /// Bit-identical to [`voxel::cell_fast`](super::voxel::cell_fast) of [`dot_row`] per point:
-    /// blocks of 16 points take the floor as `round(v) − [round(v) > v]` (exact for
-    /// `0 ≤ v < 2^51`) and the flat index in f64 (exact below 2^53) so the compiler can keep
-    /// the arithmetic in vector registers; a block with a coordinate within the tolerance
-    /// of a cell boundary is redone point by point with the exact quotient. Where f32 can hold
-    /// the grid and the coordinates (the private `Blocks::single` gives the bound), the
-    /// blocks run in f32 instead (8–17 % less voxelization time on the bunny pair, criterion
-    /// and `cpu_voxelize_ms`), and only the points near a boundary take the exact path.
+    /// the points go through the vector blocks of [`super::blocks`] (f32 where a proven
+    /// bound allows, the exact quotient near a cell boundary).
     pub fn voxelize<T: Real>(&self, r: &[[f64; 3]; 3], min: &Point, s: f64, grid: GridView<'_, T>) {
         #[cfg(target_arch = "x86_64")]
         match crate::simd::level() {
@@ -372,126 +264,23 @@ impl RotatableCloud {
         grid: GridView<'_, T>,
     ) {
         let GridView { cells, sx, sy } = grid;
-        let inv = 1.0 / s;
         let exact = ExactPath {
             r,
             min,
             s,
-            inv,
+            inv: 1.0 / s,
             sx,
             sy,
         };
-        match Blocks::single(r, min, s, self.scale, cells.len()) {
-            Some(b) => {
-                self.voxelize_blocks(&b, [&self.xs32, &self.ys32, &self.zs32], &exact, cells)
-            }
-            None => {
-                let b = Blocks::double(r, min, inv);
-                self.voxelize_blocks(&b, [&self.xs, &self.ys, &self.zs], &exact, cells)
-            }
-        }
+        let blocks = RotationBlocks::new(&exact, self.scale, cells.len());
+        blocks.mark_span(&self.coords, 0..self.coords.len, &exact, cells);
     }
-
-    /// The vector blocks of [`RotatableCloud::voxelize`] in `F` over the coordinates `xyz`
-    /// (the points' in `F`), then the points left over by the exact path.
-    #[inline(always)]
-    fn voxelize_blocks<T: Real, F: BlockFloat>(
-        &self,
-        b: &Blocks<F>,
-        xyz: [&[F]; 3],
-        exact: &ExactPath<'_>,
-        grid: &mut [T],
-    ) {
-        let n = self.points.len();
-        // Flat indices go through u32 (one conversion instruction).
-        let full = if grid.len() <= u32::MAX as usize {
-            n - n % LANES
-        } else {
-            0
-        };
-        let to_f = |x: usize| F::from(x).expect("a stride is a finite float");
-        let (fsx, fsy) = (to_f(exact.sx), to_f(exact.sy));
-        let mut i = 0;
-        while i < full {
-            let [xs, ys, zs] = xyz.map(|c| &c[i..i + LANES]);
-            // One axis at a time over the block (straight vector code).
-            let mut flat = [F::zero(); LANES];
-            let mut near = [false; LANES];
-            for (d, scale) in [(0, fsx), (1, fsy), (2, F::one())] {
-                let (row, m, abs) = (&b.rows[d], b.min[d], b.abs[d]);
-                for l in 0..LANES {
-                    let dot = row[0] * xs[l] + row[1] * ys[l] + row[2] * zs[l];
-                    let v = (dot - m) * b.inv;
-                    let nearest = (v + F::ROUND) - F::ROUND;
-                    let floor = if nearest > v {
-                        nearest - F::one()
-                    } else {
-                        nearest
-                    };
-                    let f = v - floor;
-                    let tol = abs + b.rel * v;
-                    near[l] |= !(f > tol && f < F::one() - tol);
-                    flat[l] = flat[l] + floor * scale;
-                }
-            }
-            let index = flat.map(F::index);
-            self.mark_block(exact, i, &index, &near, grid);
-            i += LANES;
-        }
-        for k in full..n {
-            self.mark_exact(exact, k, grid);
-        }
-    }
-
-    /// Mark the block of points `i..i + LANES`: the cell `index[l]` of each lane clear of a
-    /// boundary, the cell of the exact quotient for each lane `near` one.
-    #[inline(always)]
-    fn mark_block<T: Real>(
-        &self,
-        exact: &ExactPath<'_>,
-        i: usize,
-        index: &[u32; LANES],
-        near: &[bool; LANES],
-        grid: &mut [T],
-    ) {
-        if near.iter().any(|&b| b) {
-            for l in 0..LANES {
-                if near[l] {
-                    self.mark_exact(exact, i + l, grid);
-                } else {
-                    grid[index[l] as usize] = T::one();
-                }
-            }
-        } else {
-            for &v in index {
-                grid[v as usize] = T::one();
-            }
-        }
-    }
-
-    /// Scalar path of [`RotatableCloud::voxelize`] for point `k`: the exact quotient.
-    #[inline(always)]
-    fn mark_exact<T: Real>(&self, e: &ExactPath<'_>, k: usize, grid: &mut [T]) {
-        let p = &self.points[k];
-        let cell = |d: usize| super::voxel::cell_fast(dot_row(&e.r[d], p) - e.min[d], e.s, e.inv);
-        grid[cell(0) * e.sx + cell(1) * e.sy + cell(2)] = T::one();
-    }
-}
-
-/// What the exact path of one rotation's voxelization needs: rows `r`, minimum `min`, voxel
-/// `s` and `inv = 1/s`, and the grid's strides.
-struct ExactPath<'a> {
-    r: &'a [[f64; 3]; 3],
-    min: &'a Point,
-    s: f64,
-    inv: f64,
-    sx: usize,
-    sy: usize,
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::coarse::blocks::Blocks;
     use crate::rotations::RotationSet;
 
     fn lcg_cloud(n: usize, seed: u64) -> Cloud {
@@ -598,33 +387,19 @@ mod tests {
         // tolerance of a boundary somewhere, so the exact fallback runs often.
         for s in [0.125, 1.0 / 64.0] {
             let (rc, matrices) = boundary_cloud(s);
+            let n = rc.coords.len;
             check_against_exact_quotient(&rc, s, &matrices, |r, min, g| {
-                let b = Blocks::double(r, min, 1.0 / s);
                 let e = exact_path(r, min, s, &g);
-                rc.voxelize_blocks(&b, [&rc.xs, &rc.ys, &rc.zs], &e, g.cells)
+                let b = RotationBlocks::Double(Blocks::double(r, min, e.inv));
+                b.mark_span(&rc.coords, 0..n, &e, g.cells)
             });
             check_against_exact_quotient(&rc, s, &matrices, |r, min, g| {
+                let e = exact_path(r, min, s, &g);
                 let b = Blocks::single(r, min, s, rc.scale, g.cells.len())
                     .expect("small enough for f32");
-                let e = exact_path(r, min, s, &g);
-                rc.voxelize_blocks(&b, [&rc.xs32, &rc.ys32, &rc.zs32], &e, g.cells)
+                RotationBlocks::Single(b).mark_span(&rc.coords, 0..n, &e, g.cells)
             });
         }
-    }
-
-    #[test]
-    fn single_precision_declines_what_f32_cannot_hold() {
-        let r = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
-        let min = [-1.0; 3];
-        assert!(Blocks::single(&r, &min, 0.01, 1.0, 1000).is_some());
-        // A grid of 2^24 cells: flat indices would not be exact.
-        assert!(Blocks::single(&r, &min, 0.01, 1.0, 1 << 24).is_none());
-        // 2^21 cells from the origin: the tolerance would be too wide, the rounding trick
-        // out of range.
-        assert!(Blocks::single(&r, &min, 1e-6, 3.0, 1000).is_none());
-        let t = Blocks::single(&r, &min, 0.01, 1.0, 1000).unwrap();
-        // 32·2^−24·(1 + 1)/0.01 = 3.8e-4 cells.
-        assert!((t.abs[0] as f64 - 32.0 * 2.0 / 0.01 / 16_777_216.0).abs() < 1e-9);
     }
 
     #[test]
