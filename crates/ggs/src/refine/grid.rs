@@ -27,8 +27,8 @@ const EMPTY: u64 = u64::MAX;
 pub const KNN_CELL_FACTOR: f64 = 1.6;
 
 /// Dense cell tables (a start offset for every cell of the box, empty or not) are kept up
-/// to this many cells (16 MB) or 64 per point, whichever is larger.
-const DENSE_CELLS: u64 = 1 << 22;
+/// to 64 cells per point, or this many cells (256 kB) for small clouds.
+const DENSE_CELLS: u64 = 1 << 16;
 
 /// `⌊x⌋` as an integer, inline (`f64::floor` is a libm call on baseline x86-64); saturates
 /// for values beyond ±2^63, NaN gives 0.
