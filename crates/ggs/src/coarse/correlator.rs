@@ -34,7 +34,7 @@ pub struct BestOffset {
 
 /// At most this many candidate offsets are kept per approximate best (on the bunny pair's
 /// voxel-size level: 2 in the median, 18 at most).
-pub const MAX_CANDIDATES: usize = 24;
+pub const MAX_CANDIDATES: usize = 64;
 
 /// The offsets `a` whose computed output reaches `value − 2·error_bound`, in x-major C
 /// order, or none when there were more than [`MAX_CANDIDATES`]. Every offset where the exact

@@ -110,6 +110,29 @@ pub struct Workspace<T: Real = f64> {
 }
 
 impl<T: Real> Workspace<T> {
+    /// No buffers yet: [`CpuCorrelator::fit`] or [`CpuCorrelator::fit_grid`] sizes them.
+    fn empty() -> Self {
+        Workspace {
+            real: Vec::new(),
+            ay: 0,
+            lz: 0,
+            zspec: Vec::new(),
+            grid: Vec::new(),
+            slab: Vec::new(),
+            zrows: Vec::new(),
+            rrows: Vec::new(),
+            zbatch: Vec::new(),
+            scratch: Vec::new(),
+            near_best: Vec::new(),
+            occupied_estimate: 0.0,
+            ns: [0; 3],
+            t_forward: Duration::ZERO,
+            t_product: Duration::ZERO,
+            t_inverse: Duration::ZERO,
+            max_rounding_error: 0.0,
+        }
+    }
+
     /// Start a new source grid of dims `ns` (each ≤ the geometry's `source_max`): clears the
     /// region it will occupy.
     pub fn begin(&mut self, ns: [usize; 3]) {
@@ -271,25 +294,7 @@ impl<T: Real> CpuCorrelator<T> {
 
     /// Fresh buffers for one worker.
     pub fn workspace(&self) -> Workspace<T> {
-        let mut ws = Workspace {
-            real: Vec::new(),
-            ay: 0,
-            lz: 0,
-            zspec: Vec::new(),
-            grid: Vec::new(),
-            slab: Vec::new(),
-            zrows: Vec::new(),
-            rrows: Vec::new(),
-            zbatch: Vec::new(),
-            scratch: Vec::new(),
-            near_best: Vec::new(),
-            occupied_estimate: 0.0,
-            ns: [0; 3],
-            t_forward: Duration::ZERO,
-            t_product: Duration::ZERO,
-            t_inverse: Duration::ZERO,
-            max_rounding_error: 0.0,
-        };
+        let mut ws = Workspace::empty();
         self.fit(&mut ws);
         ws
     }
@@ -302,12 +307,9 @@ impl<T: Real> CpuCorrelator<T> {
     pub fn fit(&self, ws: &mut Workspace<T>) {
         let [lx, ly, lz] = self.geo.fft_len;
         let kz = self.geo.kz();
+        let ay = self.fit_grid(ws);
         let ax = self.geo.source_max[0].max(self.geo.kernel_dims[0]);
-        let ay = self.geo.source_max[1].max(self.geo.kernel_dims[1]);
         let zero = Complex::<T>::default();
-        ws.real.resize(ax * ay * lz, T::zero());
-        ws.ay = ay;
-        ws.lz = lz;
         ws.zspec.resize(ax * ay * kz, zero);
         ws.grid.resize(ly * kz * lx, zero);
         ws.slab.resize(X_BLOCK * kz * ly, zero);
@@ -315,7 +317,26 @@ impl<T: Real> CpuCorrelator<T> {
         ws.rrows.resize(ay * lz, T::zero());
         ws.zbatch.resize(self.z.batch_len(ay), zero);
         ws.scratch.resize(self.scratch_len, zero);
+    }
+
+    /// Size only the source grid of a worker's buffers (enough for voxelizing and
+    /// [`CpuCorrelator::exact_among`], not for correlating); returns the grid's y extent.
+    pub fn fit_grid(&self, ws: &mut Workspace<T>) -> usize {
+        let lz = self.geo.fft_len[2];
+        let ax = self.geo.source_max[0].max(self.geo.kernel_dims[0]);
+        let ay = self.geo.source_max[1].max(self.geo.kernel_dims[1]);
+        ws.real.resize(ax * ay * lz, T::zero());
+        ws.ay = ay;
+        ws.lz = lz;
         ws.ns = [0; 3];
+        ay
+    }
+
+    /// A workspace with only the source grid ([`CpuCorrelator::fit_grid`]).
+    pub fn grid_workspace(&self) -> Workspace<T> {
+        let mut ws = Workspace::empty();
+        self.fit_grid(&mut ws);
+        ws
     }
 
     /// r2c along z and FFT along y of the workspace's current grid into `ws.grid`

@@ -93,7 +93,9 @@ impl Correlator for CpuPlan {
     ) -> Result<(Vec<BestOffset>, StageTimes)> {
         match self {
             CpuPlan::Mixed(c, _) | CpuPlan::Exact(c) => {
-                run_pass(ctl, src, c, indices, |c, ws, _| c.best_offset(ws))
+                run_pass(ctl, src, c, indices, Buffers::Full, |c, ws, _| {
+                    c.best_offset(ws)
+                })
             }
             CpuPlan::Approximate(_) => Err(GgsError::param(
                 "scores",
@@ -123,7 +125,8 @@ impl Correlator for CpuPlan {
             in_f64 = again.len(),
             "exact re-scoring"
         );
-        let (sparse, mut times) = run_pass(ctl, src, approx, &pick(&kept), |c, ws, slot| {
+        let grid = Buffers::GridOnly;
+        let (sparse, mut times) = run_pass(ctl, src, approx, &pick(&kept), grid, |c, ws, slot| {
             let offsets = candidates[kept[slot]].offsets().expect("kept");
             c.exact_among(ws, kernel, offsets)
         })?;
@@ -171,9 +174,20 @@ fn run_pass<T: Real, R: Send + Copy>(
     src: &RotatedSources<'_>,
     corr: &CpuCorrelator<T>,
     indices: &[usize],
+    buffers: Buffers,
     score: impl Fn(&CpuCorrelator<T>, &mut Workspace<T>, usize) -> R + Sync,
 ) -> Result<(Vec<R>, StageTimes)> {
-    run_sized(ctl, src, &[corr], &vec![0; indices.len()], indices, score)
+    let plan_of = vec![0; indices.len()];
+    run_sized(ctl, src, &[corr], &plan_of, indices, buffers, score)
+}
+
+/// What a pass's workers allocate: every buffer of a correlation, or only the source grid
+/// (scoring at a few candidate offsets straight from the grid needs no transform; a
+/// re-scoring round of a handful of rotations then allocates kilobytes, not megabytes).
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Buffers {
+    Full,
+    GridOnly,
 }
 
 /// [`run_pass`] with each rotation at the smallest plan of `sized` that holds it.
@@ -191,6 +205,7 @@ fn sized_pass(
         &a.plans(sized),
         &a.plan_of,
         indices,
+        Buffers::Full,
         |c, ws, _| score(c, ws),
     )
 }
@@ -204,6 +219,7 @@ fn run_sized<T: Real, R: Send + Copy>(
     plans: &[&CpuCorrelator<T>],
     plan_of: &[usize],
     indices: &[usize],
+    buffers: Buffers,
     score: impl Fn(&CpuCorrelator<T>, &mut Workspace<T>, usize) -> R + Sync,
 ) -> Result<(Vec<R>, StageTimes)> {
     // Nothing to score: no worker, no workspace (a re-scoring splits its rotations into two
@@ -219,6 +235,7 @@ fn run_sized<T: Real, R: Send + Copy>(
         plans,
         plan_of,
         indices,
+        buffers,
         order,
         next: AtomicUsize::new(0),
         done: AtomicUsize::new(0),
@@ -261,6 +278,7 @@ struct Pass<'p, 'c, 's, T: Real, R> {
     plans: &'p [&'p CpuCorrelator<T>],
     plan_of: &'p [usize],
     indices: &'p [usize],
+    buffers: Buffers,
     order: Vec<usize>,
     next: AtomicUsize,
     done: AtomicUsize,
@@ -275,7 +293,16 @@ impl<T: Real, R: Send + Copy> Pass<'_, '_, '_, T, R> {
     fn work(&self, score: &(impl Fn(&CpuCorrelator<T>, &mut Workspace<T>, usize) -> R + Sync)) {
         let (src, s) = (self.src, self.src.voxel);
         let mut plan = self.plan_of[self.order[0]];
-        let mut ws = self.plans[plan].workspace();
+        let fit = |c: &CpuCorrelator<T>, ws: &mut Workspace<T>| match self.buffers {
+            Buffers::Full => c.fit(ws),
+            Buffers::GridOnly => {
+                c.fit_grid(ws);
+            }
+        };
+        let mut ws = match self.buffers {
+            Buffers::Full => self.plans[plan].workspace(),
+            Buffers::GridOnly => self.plans[plan].grid_workspace(),
+        };
         let mut t_vox = Duration::ZERO;
         let mut local: Vec<(usize, R)> = Vec::new();
         loop {
@@ -289,7 +316,7 @@ impl<T: Real, R: Send + Copy> Pass<'_, '_, '_, T, R> {
             };
             if self.plan_of[slot] != plan {
                 plan = self.plan_of[slot];
-                self.plans[plan].fit(&mut ws);
+                fit(self.plans[plan], &mut ws);
             }
             let k = self.indices[slot];
             let tv = Instant::now();
