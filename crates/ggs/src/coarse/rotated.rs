@@ -210,7 +210,7 @@ impl RotatableCloud {
     /// `min` must be the per-axis minimum of `R·p` computed by [`RotatableCloud::range`] (the
     /// same float expression, so every coordinate is ≥ 0) and the grid must hold every cell.
     /// Bit-identical to [`voxel::cell_fast`](super::voxel::cell_fast) of [`dot_row`] per point:
-    /// the points go through the vector blocks of [`super::blocks`] (f32 where a proven
+    /// the points go through the vector blocks of `coarse::blocks` (f32 where a proven
     /// bound allows, the exact quotient near a cell boundary).
     pub fn voxelize<T: Real>(&self, r: &[[f64; 3]; 3], min: &Point, s: f64, grid: GridView<'_, T>) {
         #[cfg(target_arch = "x86_64")]
