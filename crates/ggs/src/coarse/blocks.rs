@@ -209,7 +209,8 @@ impl RotationBlocks {
         e: &ExactPath<'_>,
         grid: &mut [T],
     ) {
-        // Flat indices go through u32 (one conversion instruction).
+        // The blocks form flat indices as u32 ([`BlockFloat::index`]): larger grids take
+        // the exact path point by point.
         if grid.len() > u32::MAX as usize {
             for k in span {
                 grid[e.index(&c.point(k))] = T::one();

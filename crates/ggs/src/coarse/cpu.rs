@@ -76,8 +76,9 @@ pub struct CpuCorrelator<T: Real = f64> {
     pub kernel_occupied: i64,
 }
 
-/// Per-worker buffers, allocated once and reused for every rotation.
-#[derive(Clone)]
+/// Per-worker buffers, allocated once and reused for every rotation (`Default`: none yet;
+/// [`CpuCorrelator::fit`] or [`CpuCorrelator::fit_grid`] sizes them).
+#[derive(Clone, Default)]
 pub struct Workspace<T: Real = f64> {
     /// Source occupancy, layout [x < ax][y < ay][z < Lz].
     real: Vec<T>,
@@ -110,29 +111,6 @@ pub struct Workspace<T: Real = f64> {
 }
 
 impl<T: Real> Workspace<T> {
-    /// No buffers yet: [`CpuCorrelator::fit`] or [`CpuCorrelator::fit_grid`] sizes them.
-    fn empty() -> Self {
-        Workspace {
-            real: Vec::new(),
-            ay: 0,
-            lz: 0,
-            zspec: Vec::new(),
-            grid: Vec::new(),
-            slab: Vec::new(),
-            zrows: Vec::new(),
-            rrows: Vec::new(),
-            zbatch: Vec::new(),
-            scratch: Vec::new(),
-            near_best: Vec::new(),
-            occupied_estimate: 0.0,
-            ns: [0; 3],
-            t_forward: Duration::ZERO,
-            t_product: Duration::ZERO,
-            t_inverse: Duration::ZERO,
-            max_rounding_error: 0.0,
-        }
-    }
-
     /// Start a new source grid of dims `ns` (each ≤ the geometry's `source_max`): clears the
     /// region it will occupy.
     pub fn begin(&mut self, ns: [usize; 3]) {
@@ -294,7 +272,7 @@ impl<T: Real> CpuCorrelator<T> {
 
     /// Fresh buffers for one worker.
     pub fn workspace(&self) -> Workspace<T> {
-        let mut ws = Workspace::empty();
+        let mut ws = Workspace::default();
         self.fit(&mut ws);
         ws
     }
@@ -330,13 +308,6 @@ impl<T: Real> CpuCorrelator<T> {
         ws.lz = lz;
         ws.ns = [0; 3];
         ay
-    }
-
-    /// A workspace with only the source grid ([`CpuCorrelator::fit_grid`]).
-    pub fn grid_workspace(&self) -> Workspace<T> {
-        let mut ws = Workspace::empty();
-        self.fit_grid(&mut ws);
-        ws
     }
 
     /// r2c along z and FFT along y of the workspace's current grid into `ws.grid`

@@ -190,6 +190,18 @@ enum Buffers {
     GridOnly,
 }
 
+impl Buffers {
+    /// Size `ws` for correlator `c`.
+    fn fit<T: Real>(self, c: &CpuCorrelator<T>, ws: &mut Workspace<T>) {
+        match self {
+            Buffers::Full => c.fit(ws),
+            Buffers::GridOnly => {
+                c.fit_grid(ws);
+            }
+        }
+    }
+}
+
 /// [`run_pass`] with each rotation at the smallest plan of `sized` that holds it.
 fn sized_pass(
     ctl: &PassControl<'_>,
@@ -293,16 +305,8 @@ impl<T: Real, R: Send + Copy> Pass<'_, '_, '_, T, R> {
     fn work(&self, score: &(impl Fn(&CpuCorrelator<T>, &mut Workspace<T>, usize) -> R + Sync)) {
         let (src, s) = (self.src, self.src.voxel);
         let mut plan = self.plan_of[self.order[0]];
-        let fit = |c: &CpuCorrelator<T>, ws: &mut Workspace<T>| match self.buffers {
-            Buffers::Full => c.fit(ws),
-            Buffers::GridOnly => {
-                c.fit_grid(ws);
-            }
-        };
-        let mut ws = match self.buffers {
-            Buffers::Full => self.plans[plan].workspace(),
-            Buffers::GridOnly => self.plans[plan].grid_workspace(),
-        };
+        let mut ws = Workspace::default();
+        self.buffers.fit(self.plans[plan], &mut ws);
         let mut t_vox = Duration::ZERO;
         let mut local: Vec<(usize, R)> = Vec::new();
         loop {
@@ -316,7 +320,7 @@ impl<T: Real, R: Send + Copy> Pass<'_, '_, '_, T, R> {
             };
             if self.plan_of[slot] != plan {
                 plan = self.plan_of[slot];
-                fit(self.plans[plan], &mut ws);
+                self.buffers.fit(self.plans[plan], &mut ws);
             }
             let k = self.indices[slot];
             let tv = Instant::now();
