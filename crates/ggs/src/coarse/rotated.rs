@@ -67,9 +67,21 @@ impl RotatableCloud {
             let f = |d: usize| (((p[d] - b.min[d]) / cell) as u32).min(divisions as u32);
             (f(0), f(1), f(2))
         };
-        let mut order: Vec<usize> = (0..centred.len()).collect();
-        order.sort_by_key(|&i| (key(&centred[i]), i));
-        let points: Vec<Point> = order.iter().map(|&i| centred[i]).collect();
+        // Each key computed once (a comparison sort calling `key` cost 9 ms on 40 000
+        // points); (key, index) pairs are distinct, so the unstable sort's order is total.
+        // A key is at most 32 (6 bits) an axis: key and index (below 2^40: a cloud holds
+        // fewer points) packed in one u64, in the order of (key, index).
+        let mut keyed: Vec<u64> = centred
+            .iter()
+            .enumerate()
+            .map(|(i, p)| {
+                let (a, b, c) = key(p);
+                (((a as u64) << 12 | (b as u64) << 6 | c as u64) << 40) | i as u64
+            })
+            .collect();
+        keyed.sort_unstable();
+        let index = |e: u64| (e & ((1 << 40) - 1)) as usize;
+        let points: Vec<Point> = keyed.iter().map(|&e| centred[index(e)]).collect();
         let mut centres = Centres::default();
         let mut start = 0;
         while start < points.len() {
