@@ -234,22 +234,18 @@ impl CellGrid {
                 return None;
             }
         }
-        let mut best: Option<(usize, f64)> = None;
+        // The best so far as (index, squared distance), starting from the sentinel
+        // (usize::MAX, r2): a point at exactly r2 still wins it, so no separate radius test,
+        // and no Option in the loop. The minimum of (d2, index) over the points within r2
+        // does not depend on the scan order.
+        let (mut best_i, mut best_d2) = (usize::MAX, r2);
         let mut scan = |range: std::ops::Range<usize>| {
-            for s in range {
-                let p = &self.sorted[s];
+            let (sorted, order) = (&self.sorted[range.clone()], &self.order[range]);
+            for (p, &idx) in sorted.iter().zip(order) {
                 let d = [p[0] - q[0], p[1] - q[1], p[2] - q[2]];
                 let d2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
-                if d2 > r2 {
-                    continue;
-                }
-                let idx = self.order[s] as usize;
-                let better = match best {
-                    None => true,
-                    Some((bi, bd)) => d2 < bd || (d2 == bd && idx < bi),
-                };
-                if better {
-                    best = Some((idx, d2));
+                if d2 < best_d2 || (d2 == best_d2 && (idx as usize) < best_i) {
+                    (best_i, best_d2) = (idx as usize, d2);
                 }
             }
         };
@@ -281,7 +277,7 @@ impl CellGrid {
                 }
             }
         }
-        best
+        (best_i != usize::MAX).then_some((best_i, best_d2))
     }
 
     /// Mean number of points in the cell of a point (`Σ_cells count² / n`): the occupancy a
