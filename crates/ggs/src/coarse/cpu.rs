@@ -33,6 +33,7 @@ use super::geometry::X_BLOCK;
 pub use super::geometry::{fast_len, is_3_smooth, Geometry};
 use super::grid_view::GridView;
 pub use super::grid_view::Real;
+use super::transpose::transpose;
 use super::voxel::Occupancy;
 use super::zaxis::ZAxis;
 use rustfft::num_complex::Complex;
@@ -336,24 +337,19 @@ impl<T: Real> CpuCorrelator<T> {
             let nb = X_BLOCK.min(nsx - x0);
             for b in 0..nb {
                 let x = x0 + b;
-                for k in 0..kz {
-                    let dst = &mut ws.slab[(b * kz + k) * ly..(b * kz + k + 1) * ly];
-                    for y in 0..nsy {
-                        dst[y] = ws.zspec[(x * ay + y) * kz + k];
-                    }
-                    dst[nsy..].fill(Complex::default());
+                let slab = &mut ws.slab[b * kz * ly..(b + 1) * kz * ly];
+                transpose(&ws.zspec[x * ay * kz..], kz, slab, ly, nsy, kz);
+                for line in slab.chunks_exact_mut(ly) {
+                    line[nsy..].fill(Complex::default());
                 }
             }
             self.fft_y
                 .process_with_scratch(&mut ws.slab[..nb * kz * ly], &mut ws.scratch);
-            // k outside y: the nb slab lines of one k stay in L1 while y walks them.
+            // Per k: the nb slab lines (x0 + b, k, ·) become column x0 + b of the grid lines
+            // (·, k, x).
             for k in 0..kz {
-                for y in 0..ly {
-                    let base = (y * kz + k) * lx + x0;
-                    for b in 0..nb {
-                        ws.grid[base + b] = ws.slab[(b * kz + k) * ly + y];
-                    }
-                }
+                let (src, dst) = (&ws.slab[k * ly..], &mut ws.grid[k * lx + x0..]);
+                transpose(src, kz * ly, dst, kz * lx, nb, ly);
             }
             x0 += nb;
         }
@@ -593,31 +589,31 @@ impl<T: Real> CpuCorrelator<T> {
         let wrap = |a: usize, c: usize, l: usize| if a >= c { a - c } else { a + l - c };
         let first = cz.min(nsz);
         let (z_tail, z_head) = ((lz - cz)..(lz - cz + first), 0..(nsz - first));
-        let mut jxs = [0usize; X_BLOCK];
         let mut a0 = 0;
         while a0 < nsx {
             let nb = X_BLOCK.min(nsx - a0);
-            for (b, j) in jxs.iter_mut().enumerate().take(nb) {
-                *j = wrap(a0 + b, cx, lx);
-            }
-            for k in 0..kz {
-                for y in 0..ly {
-                    let line = &ws.grid[(y * kz + k) * lx..(y * kz + k + 1) * lx];
-                    for (b, &j) in jxs.iter().enumerate().take(nb) {
-                        ws.slab[(b * kz + k) * ly + y] = line[j];
-                    }
+            // Offsets a0 + b read grid columns wrap(a0 + b): at most two contiguous runs.
+            let mut b0 = 0;
+            while b0 < nb {
+                let j0 = wrap(a0 + b0, cx, lx);
+                let run = (nb - b0).min(lx - j0);
+                for k in 0..kz {
+                    let src = &ws.grid[k * lx + j0..];
+                    let dst = &mut ws.slab[(b0 * kz + k) * ly..];
+                    transpose(src, kz * lx, dst, kz * ly, ly, run);
                 }
+                b0 += run;
             }
             self.ifft_y
                 .process_with_scratch(&mut ws.slab[..nb * kz * ly], &mut ws.scratch);
             for b in 0..nb {
                 let ax = a0 + b;
-                for ay in 0..nsy {
-                    let jy = wrap(ay, cy, ly);
-                    for k in 0..kz {
-                        ws.zrows[ay * kz + k] = ws.slab[(b * kz + k) * ly + jy];
-                    }
-                }
+                // Offsets ay read slab columns wrap(ay): [L − C, L) for ay < C, then from 0.
+                let slab = &ws.slab[b * kz * ly..(b + 1) * kz * ly];
+                let below = cy.min(nsy);
+                transpose(&slab[ly - cy..], ly, &mut ws.zrows, kz, kz, below);
+                let rest = &mut ws.zrows[below * kz..];
+                transpose(slab, ly, rest, kz, kz, nsy - below);
                 // The result is real (the z axis takes the DC and Nyquist bins as real).
                 self.z.inverse(
                     &mut ws.zrows[..nsy * kz],

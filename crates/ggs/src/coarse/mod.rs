@@ -50,6 +50,7 @@ pub mod rotated;
 pub mod selection;
 pub mod sized;
 pub mod source;
+mod transpose;
 pub mod voxel;
 pub mod zaxis;
 
