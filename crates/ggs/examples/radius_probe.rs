@@ -1,7 +1,8 @@
 //! Times `RadiusSearch::nearest` and `nearest_near` (with the previous answer as hint) on
-//! one thread: `cargo run --release --example radius_probe -p ggs -- SOURCE TARGET CELL R
-//! `[SHIFT]` (both clouds thinned to one point per cell of `CELL`; the queries are the
-//! source points moved by `SHIFT · (1, −0.6, 0.8)`).
+//! one thread:
+//! `cargo run --release --example radius_probe -p ggs -- SOURCE TARGET CELL R [SHIFT]`
+//! (both clouds thinned to one point per cell of `CELL`; the queries are the source points
+//! moved by `SHIFT · (1, −0.6, 0.8)`; every hinted answer is checked against the plain one).
 use ggs::refine::grid::RadiusSearch;
 use std::time::Instant;
 
