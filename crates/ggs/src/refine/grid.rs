@@ -38,6 +38,18 @@ fn floor_i64(x: f64) -> i64 {
     t - ((t as f64) > x) as i64
 }
 
+/// `columns[col]..columns[col + 1]`: the indices of the occupied cells (sorted `keys`) in
+/// column `col = key / dims[2]`.
+fn column_starts(keys: &[u64], dims: [u64; 3]) -> Vec<u32> {
+    let n_columns = (dims[0] * dims[1]) as usize;
+    let mut columns = Vec::with_capacity(n_columns + 1);
+    for (c, &key) in keys.iter().enumerate() {
+        columns.resize((key / dims[2]) as usize + 1, c as u32);
+    }
+    columns.resize(n_columns + 1, keys.len() as u32);
+    columns
+}
+
 /// Occupied cells of a grid, hashed by linear key.
 struct CellTable {
     keys: Vec<u64>,
@@ -102,6 +114,10 @@ pub struct CellGrid {
     /// positions of the points in the cell with that linear key, so a run of cells along z
     /// is one contiguous range.
     dense: Option<Vec<u32>>,
+    /// Without a dense table, when the box has few enough columns: the occupied cells of
+    /// column `(i, j)` (linear index `i·dims[1] + j`) are `columns[col]..columns[col + 1]`, in
+    /// increasing z, and their points are one contiguous run of sorted points.
+    columns: Option<Vec<u32>>,
 }
 
 impl CellGrid {
@@ -139,6 +155,7 @@ impl CellGrid {
             coords: Vec::new(),
             table: CellTable::new(&[]),
             dense: None,
+            columns: None,
         };
         let mut keyed: Vec<(u64, u32)> = points
             .iter()
@@ -165,8 +182,13 @@ impl CellGrid {
             }
             dense.resize(total as usize + 1, keyed.len() as u32);
             grid.dense = Some(dense);
+        } else if dims[0] * dims[1] <= dense_limit {
+            grid.columns = Some(column_starts(&keys, dims));
         }
-        grid.table = CellTable::new(&keys);
+        // With a column table every lookup goes through it.
+        if grid.columns.is_none() {
+            grid.table = CellTable::new(&keys);
+        }
         Some(grid)
     }
 
@@ -209,8 +231,36 @@ impl CellGrid {
                 return None;
             }
         }
+        if self.columns.is_some() {
+            let cells = self.column_cells(c[0], c[1], c[2], c[2]);
+            return (!cells.is_empty()).then_some(cells.start);
+        }
         self.table
             .get(self.key(&[c[0] as u64, c[1] as u64, c[2] as u64]))
+    }
+
+    /// The occupied cells of column `(i, j)` (inside the box) with z in `k0..=k1`, as a range
+    /// of cell indices (empty if none); only with a column table.
+    #[inline]
+    fn column_cells(&self, i: i64, j: i64, k0: i64, k1: i64) -> std::ops::Range<usize> {
+        let columns = self.columns.as_deref().unwrap_or(&[0, 0]);
+        let col = (i as u64 * self.dims[1] + j as u64) as usize;
+        let all = columns[col] as usize..columns[col + 1] as usize;
+        // A column holds a few cells on a surface: a linear walk.
+        let mut first = all.end;
+        let mut end = all.end;
+        for c in all {
+            let k = self.coords[c][2] as i64;
+            if k < k0 {
+                continue;
+            }
+            if k > k1 {
+                end = c;
+                break;
+            }
+            first = first.min(c);
+        }
+        first.min(end)..end
     }
 
     #[inline]
@@ -268,6 +318,12 @@ impl CellGrid {
                     let k0 = self.key(&[i as u64, j as u64, lo[2] as u64]) as usize;
                     let k1 = self.key(&[i as u64, j as u64, hi[2] as u64]) as usize;
                     scan(dense[k0] as usize..dense[k1 + 1] as usize);
+                } else if self.columns.is_some() {
+                    // The column's occupied cells within lo..=hi hold one run of points.
+                    let cells = self.column_cells(i, j, lo[2], hi[2]);
+                    if !cells.is_empty() {
+                        scan(self.start[cells.start] as usize..self.start[cells.end] as usize);
+                    }
                 } else {
                     for k in lo[2]..=hi[2] {
                         if let Some(cell) = self.find([i, j, k]) {
@@ -658,22 +714,28 @@ mod tests {
     }
 
     #[test]
-    fn hashed_and_dense_grids_agree() {
+    fn hashed_column_and_dense_grids_agree() {
         let pts = cloud(3000, 21);
         let tree = PointIndex::new(&pts);
         let r = median_kth_distance(&pts, &tree, 10).unwrap();
-        let dense = CellGrid::new(&pts, r * KNN_CELL_FACTOR).unwrap();
-        let hashed = CellGrid::with_dense_limit(&pts, r * KNN_CELL_FACTOR, 0).unwrap();
-        assert!(dense.dense.is_some() && hashed.dense.is_none());
+        let h = r * KNN_CELL_FACTOR;
+        let dense = CellGrid::new(&pts, h).unwrap();
+        let hashed = CellGrid::with_dense_limit(&pts, h, 0).unwrap();
+        let [nx, ny, _] = dense.dims;
+        let columns = CellGrid::with_dense_limit(&pts, h, nx * ny).unwrap();
+        assert!(dense.dense.is_some() && dense.columns.is_none());
+        assert!(hashed.dense.is_none() && hashed.columns.is_none());
+        assert!(columns.dense.is_none() && columns.columns.is_some());
         let knn = |g: &CellGrid| g.map_knn(&pts, 10, 1.5 * r, &tree, |_, nb, _| nb.to_vec());
-        assert_eq!(knn(&dense), knn(&hashed));
+        let expected = knn(&dense);
+        assert_eq!(knn(&hashed), expected);
+        assert_eq!(knn(&columns), expected);
         for q in cloud(300, 4) {
             let q = [q[0] + 0.01, q[1], q[2]];
-            for rr in [0.5 * r, 2.0 * r] {
-                assert_eq!(
-                    dense.nearest_within(&q, rr * rr),
-                    hashed.nearest_within(&q, rr * rr)
-                );
+            for rr in [0.5 * r, 2.0 * r, 5.0 * r] {
+                let expected = dense.nearest_within(&q, rr * rr);
+                assert_eq!(hashed.nearest_within(&q, rr * rr), expected);
+                assert_eq!(columns.nearest_within(&q, rr * rr), expected);
             }
         }
     }
