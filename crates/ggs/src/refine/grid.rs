@@ -38,6 +38,50 @@ fn floor_i64(x: f64) -> i64 {
     t - ((t as f64) > x) as i64
 }
 
+/// Point indices in the order of (key, index), and for every key `k < cells` the number of
+/// points with a smaller key (`cells + 1` entries): a counting sort, O(points + cells).
+fn counting_order(keys: &[u64], cells: usize) -> (Vec<u32>, Vec<u32>) {
+    let mut starts = vec![0u32; cells + 1];
+    for &k in keys {
+        starts[k as usize + 1] += 1;
+    }
+    for c in 1..=cells {
+        starts[c] += starts[c - 1];
+    }
+    // Each key's entry serves as its cursor, ending at the next key's start; shifted back
+    // by one entry after.
+    let mut order = vec![0u32; keys.len()];
+    for (i, &k) in keys.iter().enumerate() {
+        let cursor = &mut starts[k as usize];
+        order[*cursor as usize] = i as u32;
+        *cursor += 1;
+    }
+    starts.copy_within(0..cells, 1);
+    starts[0] = 0;
+    (order, starts)
+}
+
+/// Point indices in the order of (key, index): key and index packed in one u64 when the
+/// keys fit in 32 bits (one integer sort), pairs otherwise.
+fn sorted_order(keys: &[u64]) -> Vec<u32> {
+    if keys.iter().all(|&k| k <= u32::MAX as u64) {
+        let mut packed: Vec<u64> = keys
+            .iter()
+            .enumerate()
+            .map(|(i, &k)| k << 32 | i as u64)
+            .collect();
+        packed.sort_unstable();
+        return packed.into_iter().map(|x| x as u32).collect();
+    }
+    let mut keyed: Vec<(u64, u32)> = keys
+        .iter()
+        .enumerate()
+        .map(|(i, &k)| (k, i as u32))
+        .collect();
+    keyed.sort_unstable();
+    keyed.into_iter().map(|(_, i)| i).collect()
+}
+
 /// `columns[col]..columns[col + 1]`: the indices of the occupied cells (sorted `keys`) in
 /// column `col = key / dims[2]`.
 fn column_starts(keys: &[u64], dims: [u64; 3]) -> Vec<u32> {
@@ -157,32 +201,32 @@ impl CellGrid {
             dense: None,
             columns: None,
         };
-        let mut keyed: Vec<(u64, u32)> = points
-            .iter()
-            .enumerate()
-            .map(|(i, p)| (grid.key(&grid.cell_of(p)), i as u32))
-            .collect();
-        keyed.sort_unstable();
+        let point_keys: Vec<u64> = points.iter().map(|p| grid.key(&grid.cell_of(p))).collect();
+        let total = dims[0] * dims[1] * dims[2];
+        let dense = total <= dense_limit;
+        // The order of (cell key, index): by counting where the dense table is built anyway
+        // (one pass over the cells), by sorting otherwise.
+        let (order, dense_starts) = if dense {
+            let (order, starts) = counting_order(&point_keys, total as usize);
+            (order, Some(starts))
+        } else {
+            (sorted_order(&point_keys), None)
+        };
         let mut keys = Vec::new();
-        for (s, &(key, i)) in keyed.iter().enumerate() {
+        grid.sorted = Vec::with_capacity(order.len());
+        for (s, &i) in order.iter().enumerate() {
+            let key = point_keys[i as usize];
             if keys.last() != Some(&key) {
                 keys.push(key);
                 grid.start.push(s as u32);
                 grid.coords.push(grid.cell_of(&points[i as usize]));
             }
-            grid.order.push(i);
             grid.sorted.push(points[i as usize]);
         }
-        grid.start.push(keyed.len() as u32);
-        let total = dims[0] * dims[1] * dims[2];
-        if total <= dense_limit {
-            let mut dense = Vec::with_capacity(total as usize + 1);
-            for (c, &key) in keys.iter().enumerate() {
-                dense.resize(key as usize + 1, grid.start[c]);
-            }
-            dense.resize(total as usize + 1, keyed.len() as u32);
-            grid.dense = Some(dense);
-        } else if dims[0] * dims[1] <= dense_limit {
+        grid.start.push(order.len() as u32);
+        grid.order = order;
+        grid.dense = dense_starts;
+        if !dense && dims[0] * dims[1] <= dense_limit {
             grid.columns = Some(column_starts(&keys, dims));
         }
         // With a column table every lookup goes through it.
@@ -738,6 +782,31 @@ mod tests {
                 assert_eq!(columns.nearest_within(&q, rr * rr), expected);
             }
         }
+    }
+
+    #[test]
+    fn counted_packed_and_paired_orders_agree() {
+        let mut next = crate::test_rng::uniform(9);
+        let small: Vec<u64> = (0..5000).map(|_| (next() * 700.0) as u64).collect();
+        let mut pairs: Vec<(u64, u32)> = small
+            .iter()
+            .enumerate()
+            .map(|(i, &k)| (k, i as u32))
+            .collect();
+        pairs.sort_unstable();
+        let expected: Vec<u32> = pairs.iter().map(|p| p.1).collect();
+        let (counted, starts) = counting_order(&small, 700);
+        assert_eq!(counted, expected);
+        assert_eq!(sorted_order(&small), expected);
+        for k in [0usize, 1, 350, 699, 700] {
+            assert_eq!(
+                starts[k] as usize,
+                small.iter().filter(|&&x| (x as usize) < k).count()
+            );
+        }
+        // Keys beyond 32 bits take the paired sort.
+        let large: Vec<u64> = small.iter().map(|&k| k << 33 | 7).collect();
+        assert_eq!(sorted_order(&large), expected);
     }
 
     #[test]
