@@ -10,8 +10,11 @@
 //!   that meet the cube of half-side `r` around the query.
 //!
 //! Cell `(i, j, k)` of size `h` covers `origin + h·[i, i+1) × [j, j+1) × [k, k+1)`, with
-//! `origin` the lower corner of the cloud's bounding box. Occupied cells are found through an
-//! open-addressing hash table, so memory grows with the points, not with the box.
+//! `origin` the lower corner of the cloud's bounding box. The points are ordered by (cell key,
+//! index); occupied cells are found through a dense table of every cell's first point when the
+//! box has at most 64 cells a point, else through a table of every (x, y) column's occupied
+//! cells when the columns are that few, else through an open-addressing hash table, so memory
+//! grows with the points, not with the box.
 
 use super::neighbors::PointIndex;
 use crate::cloud::Point;
@@ -173,7 +176,8 @@ impl CellGrid {
     }
 
     /// [`Self::new`] with a dense cell table only when the box has at most `dense_limit`
-    /// cells (the hash table alone otherwise).
+    /// cells, else a column table when it has at most `dense_limit` columns, else the hash
+    /// table alone.
     fn with_dense_limit(points: &[Point], h: f64, dense_limit: u64) -> Option<Self> {
         if !(h.is_finite() && h > 0.0) || points.is_empty() || points.len() > u32::MAX as usize {
             return None;
