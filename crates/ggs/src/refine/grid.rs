@@ -12,9 +12,9 @@
 //! Cell `(i, j, k)` of size `h` covers `origin + h·[i, i+1) × [j, j+1) × [k, k+1)`, with
 //! `origin` the lower corner of the cloud's bounding box. The points are ordered by (cell key,
 //! index); occupied cells are found through a dense table of every cell's first point when the
-//! box has at most 64 cells a point, else through a table of every (x, y) column's occupied
-//! cells when the columns are that few, else through an open-addressing hash table, so memory
-//! grows with the points, not with the box.
+//! box has at most 64 cells a point (or 65 536 cells), else through a table of every (x, y)
+//! column's occupied cells when it has at most 8 columns a point, else through an
+//! open-addressing hash table, so memory grows with the points, not with the box.
 
 use super::neighbors::PointIndex;
 use crate::cloud::Point;
@@ -176,7 +176,8 @@ impl CellGrid {
     }
 
     /// [`Self::new`] with a dense cell table only when the box has at most `dense_limit`
-    /// cells, else a column table when it has at most `dense_limit` columns, else the hash
+    /// cells, else a column table when it has at most `dense_limit / 8` columns (4 bytes a
+    /// column: at most 32 bytes a point beside the 36 of its copy and order), else the hash
     /// table alone.
     fn with_dense_limit(points: &[Point], h: f64, dense_limit: u64) -> Option<Self> {
         if !(h.is_finite() && h > 0.0) || points.is_empty() || points.len() > u32::MAX as usize {
@@ -230,7 +231,7 @@ impl CellGrid {
         grid.start.push(order.len() as u32);
         grid.order = order;
         grid.dense = dense_starts;
-        if !dense && dims[0] * dims[1] <= dense_limit {
+        if !dense && dims[0] * dims[1] <= dense_limit / 8 {
             grid.columns = Some(column_starts(&keys, dims));
         }
         // With a column table every lookup goes through it.
@@ -770,7 +771,7 @@ mod tests {
         let dense = CellGrid::new(&pts, h).unwrap();
         let hashed = CellGrid::with_dense_limit(&pts, h, 0).unwrap();
         let [nx, ny, _] = dense.dims;
-        let columns = CellGrid::with_dense_limit(&pts, h, nx * ny).unwrap();
+        let columns = CellGrid::with_dense_limit(&pts, h, 8 * nx * ny).unwrap();
         assert!(dense.dense.is_some() && dense.columns.is_none());
         assert!(hashed.dense.is_none() && hashed.columns.is_none());
         assert!(columns.dense.is_none() && columns.columns.is_some());
