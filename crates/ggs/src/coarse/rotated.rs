@@ -68,20 +68,19 @@ impl RotatableCloud {
             (f(0), f(1), f(2))
         };
         // Each key computed once (a comparison sort calling `key` cost 9 ms on 40 000
-        // points); (key, index) pairs are distinct, so the unstable sort's order is total.
-        // A key is at most 32 (6 bits) an axis: key and index (below 2^40: a cloud holds
-        // fewer points) packed in one u64, in the order of (key, index).
-        let mut keyed: Vec<u64> = centred
+        // points), then the indices ordered by (key, index). A key is at most 32 (6 bits) an
+        // axis.
+        let keys: Vec<u64> = centred
             .iter()
-            .enumerate()
-            .map(|(i, p)| {
+            .map(|p| {
                 let (a, b, c) = key(p);
-                (((a as u64) << 12 | (b as u64) << 6 | c as u64) << 40) | i as u64
+                (a as u64) << 12 | (b as u64) << 6 | c as u64
             })
             .collect();
-        keyed.sort_unstable();
-        let index = |e: u64| (e & ((1 << 40) - 1)) as usize;
-        let points: Vec<Point> = keyed.iter().map(|&e| centred[index(e)]).collect();
+        let points: Vec<Point> = crate::order::by_key(&keys)
+            .into_iter()
+            .map(|i| centred[i])
+            .collect();
         let mut centres = Centres::default();
         let mut start = 0;
         while start < points.len() {

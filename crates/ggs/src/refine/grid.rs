@@ -64,27 +64,6 @@ fn counting_order(keys: &[u64], cells: usize) -> (Vec<u32>, Vec<u32>) {
     (order, starts)
 }
 
-/// Point indices in the order of (key, index): key and index packed in one u64 when the
-/// keys fit in 32 bits (one integer sort), pairs otherwise.
-fn sorted_order(keys: &[u64]) -> Vec<u32> {
-    if keys.iter().all(|&k| k <= u32::MAX as u64) {
-        let mut packed: Vec<u64> = keys
-            .iter()
-            .enumerate()
-            .map(|(i, &k)| k << 32 | i as u64)
-            .collect();
-        packed.sort_unstable();
-        return packed.into_iter().map(|x| x as u32).collect();
-    }
-    let mut keyed: Vec<(u64, u32)> = keys
-        .iter()
-        .enumerate()
-        .map(|(i, &k)| (k, i as u32))
-        .collect();
-    keyed.sort_unstable();
-    keyed.into_iter().map(|(_, i)| i).collect()
-}
-
 /// `columns[col]..columns[col + 1]`: the indices of the occupied cells (sorted `keys`) in
 /// column `col = key / dims[2]`.
 fn column_starts(keys: &[u64], dims: [u64; 3]) -> Vec<u32> {
@@ -210,12 +189,13 @@ impl CellGrid {
         let total = dims[0] * dims[1] * dims[2];
         let dense = total <= dense_limit;
         // The order of (cell key, index): by counting where the dense table is built anyway
-        // (one pass over the cells), by sorting otherwise.
+        // (one pass over the cells), by sorting otherwise ([`crate::order::by_key`]).
         let (order, dense_starts) = if dense {
             let (order, starts) = counting_order(&point_keys, total as usize);
             (order, Some(starts))
         } else {
-            (sorted_order(&point_keys), None)
+            let order = crate::order::by_key(&point_keys);
+            (order.into_iter().map(|i| i as u32).collect(), None)
         };
         let mut keys = Vec::new();
         grid.sorted = Vec::with_capacity(order.len());
@@ -790,28 +770,21 @@ mod tests {
     }
 
     #[test]
-    fn counted_packed_and_paired_orders_agree() {
+    fn counted_and_sorted_orders_agree() {
         let mut next = crate::test_rng::uniform(9);
-        let small: Vec<u64> = (0..5000).map(|_| (next() * 700.0) as u64).collect();
-        let mut pairs: Vec<(u64, u32)> = small
-            .iter()
-            .enumerate()
-            .map(|(i, &k)| (k, i as u32))
+        let keys: Vec<u64> = (0..5000).map(|_| (next() * 700.0) as u64).collect();
+        let sorted: Vec<u32> = crate::order::by_key(&keys)
+            .into_iter()
+            .map(|i| i as u32)
             .collect();
-        pairs.sort_unstable();
-        let expected: Vec<u32> = pairs.iter().map(|p| p.1).collect();
-        let (counted, starts) = counting_order(&small, 700);
-        assert_eq!(counted, expected);
-        assert_eq!(sorted_order(&small), expected);
+        let (counted, starts) = counting_order(&keys, 700);
+        assert_eq!(counted, sorted);
         for k in [0usize, 1, 350, 699, 700] {
             assert_eq!(
                 starts[k] as usize,
-                small.iter().filter(|&&x| (x as usize) < k).count()
+                keys.iter().filter(|&&x| (x as usize) < k).count()
             );
         }
-        // Keys beyond 32 bits take the paired sort.
-        let large: Vec<u64> = small.iter().map(|&k| k << 33 | 7).collect();
-        assert_eq!(sorted_order(&large), expected);
     }
 
     #[test]
