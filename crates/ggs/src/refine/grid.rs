@@ -214,8 +214,8 @@ impl CellGrid {
         if !dense && dims[0] * dims[1] <= dense_limit / 8 {
             grid.columns = Some(column_starts(&keys, dims));
         }
-        // With a column table every lookup goes through it.
-        if grid.columns.is_none() {
+        // The hash serves only a grid with neither table.
+        if grid.dense.is_none() && grid.columns.is_none() {
             grid.table = CellTable::new(&keys);
         }
         Some(grid)
@@ -252,22 +252,6 @@ impl CellGrid {
         (c[0] * self.dims[1] + c[1]) * self.dims[2] + c[2]
     }
 
-    /// The occupied cell at signed coordinates, if any.
-    #[inline]
-    fn find(&self, c: [i64; 3]) -> Option<usize> {
-        for a in 0..3 {
-            if c[a] < 0 || c[a] as u64 >= self.dims[a] {
-                return None;
-            }
-        }
-        if self.columns.is_some() {
-            let cells = self.column_cells(c[0], c[1], c[2], c[2]);
-            return (!cells.is_empty()).then_some(cells.start);
-        }
-        self.table
-            .get(self.key(&[c[0] as u64, c[1] as u64, c[2] as u64]))
-    }
-
     /// The occupied cells of column `(i, j)` (inside the box) with z in `k0..=k1`, as a range
     /// of cell indices (empty if none); only with a column table.
     #[inline]
@@ -290,6 +274,31 @@ impl CellGrid {
             first = first.min(c);
         }
         first.min(end)..end
+    }
+
+    /// The sorted positions of the points of cells `(i, j, k0..=k1)` (inside the box): one
+    /// run, since those cells' keys are consecutive. Found through whichever table the grid
+    /// keeps: the dense one (two entries), the column one (a walk along the column) or the
+    /// hash (a probe per cell).
+    #[inline]
+    fn column_run(&self, i: i64, j: i64, k0: i64, k1: i64) -> std::ops::Range<usize> {
+        let key = |k: i64| self.key(&[i as u64, j as u64, k as u64]) as usize;
+        if let Some(dense) = &self.dense {
+            return dense[key(k0)] as usize..dense[key(k1) + 1] as usize;
+        }
+        let cells = if self.columns.is_some() {
+            self.column_cells(i, j, k0, k1)
+        } else {
+            let mut found = (k0..=k1).filter_map(|k| self.table.get(key(k) as u64));
+            match found.next() {
+                Some(first) => first..found.next_back().unwrap_or(first) + 1,
+                None => 0..0,
+            }
+        };
+        if cells.is_empty() {
+            return 0..0;
+        }
+        self.start[cells.start] as usize..self.start[cells.end] as usize
     }
 
     #[inline]
@@ -342,24 +351,7 @@ impl CellGrid {
                 if gi + gap2(1, j) > r * r {
                     continue;
                 }
-                if let Some(dense) = &self.dense {
-                    // The cells (i, j, lo..=hi) are one contiguous run of sorted points.
-                    let k0 = self.key(&[i as u64, j as u64, lo[2] as u64]) as usize;
-                    let k1 = self.key(&[i as u64, j as u64, hi[2] as u64]) as usize;
-                    scan(dense[k0] as usize..dense[k1 + 1] as usize);
-                } else if self.columns.is_some() {
-                    // The column's occupied cells within lo..=hi hold one run of points.
-                    let cells = self.column_cells(i, j, lo[2], hi[2]);
-                    if !cells.is_empty() {
-                        scan(self.start[cells.start] as usize..self.start[cells.end] as usize);
-                    }
-                } else {
-                    for k in lo[2]..=hi[2] {
-                        if let Some(cell) = self.find([i, j, k]) {
-                            scan(self.range(cell));
-                        }
-                    }
-                }
+                scan(self.column_run(i, j, lo[2], hi[2]));
             }
         }
         (best_i != usize::MAX).then_some((best_i, best_d2))
@@ -406,16 +398,14 @@ impl CellGrid {
         let c = self.coords[cell];
         pts.clear();
         idx.clear();
-        for di in -1..=1i64 {
-            for dj in -1..=1i64 {
-                for dk in -1..=1i64 {
-                    let at = [c[0] as i64 + di, c[1] as i64 + dj, c[2] as i64 + dk];
-                    if let Some(nc) = self.find(at) {
-                        let r = self.range(nc);
-                        pts.extend_from_slice(&self.sorted[r.clone()]);
-                        idx.extend_from_slice(&self.order[r]);
-                    }
-                }
+        let inside = |a: usize, v: i64| v >= 0 && (v as u64) < self.dims[a];
+        let [ci, cj, ck] = c.map(|v| v as i64);
+        let (k0, k1) = ((ck - 1).max(0), (ck + 1).min(self.dims[2] as i64 - 1));
+        for i in (ci - 1..=ci + 1).filter(|&i| inside(0, i)) {
+            for j in (cj - 1..=cj + 1).filter(|&j| inside(1, j)) {
+                let r = self.column_run(i, j, k0, k1);
+                pts.extend_from_slice(&self.sorted[r.clone()]);
+                idx.extend_from_slice(&self.order[r]);
             }
         }
         let mut lo = [0.0; 3];
