@@ -4,15 +4,13 @@
 //! clouds of millions of points and holds 8 bytes a point, where this holds the keys, the
 //! packed words and the indices (24).
 
-use rayon::prelude::*;
-
 /// Indices `0..keys.len()` ordered by `(keys[i], i)`.
 ///
 /// When the largest key and the largest index fit together in 64 bits (the usual case:
 /// cell keys of a few tens of bits, clouds of millions of points) each entry is packed into
 /// one word `key · 2^b + i` and the words are sorted as integers; otherwise (key, index)
-/// pairs are sorted. The entries are distinct, so the parallel unstable sort's order is
-/// total: the same for any thread count.
+/// pairs are sorted. The entries are distinct, so the unstable sort's order is total. One
+/// thread: its callers build per-cloud structures while other work runs beside them.
 pub fn by_key(keys: &[u64]) -> Vec<usize> {
     let n = keys.len();
     if n == 0 {
@@ -28,12 +26,12 @@ pub fn by_key(keys: &[u64]) -> Vec<usize> {
             .enumerate()
             .map(|(i, &k)| k << index_bits | i as u64)
             .collect();
-        packed.par_sort_unstable();
+        packed.sort_unstable();
         let low = (1u64 << index_bits) - 1;
         return packed.into_iter().map(|e| (e & low) as usize).collect();
     }
     let mut pairs: Vec<(u64, usize)> = keys.iter().copied().zip(0..n).collect();
-    pairs.par_sort_unstable();
+    pairs.sort_unstable();
     pairs.into_iter().map(|(_, i)| i).collect()
 }
 
