@@ -253,27 +253,24 @@ impl CellGrid {
     }
 
     /// The occupied cells of column `(i, j)` (inside the box) with z in `k0..=k1`, as a range
-    /// of cell indices (empty if none); only with a column table.
+    /// of cell indices (empty if none), from the column table `columns`.
     #[inline]
-    fn column_cells(&self, i: i64, j: i64, k0: i64, k1: i64) -> std::ops::Range<usize> {
-        let columns = self.columns.as_deref().unwrap_or(&[0, 0]);
+    fn column_cells(
+        &self,
+        columns: &[u32],
+        i: i64,
+        j: i64,
+        k0: i64,
+        k1: i64,
+    ) -> std::ops::Range<usize> {
         let col = (i as u64 * self.dims[1] + j as u64) as usize;
-        let all = columns[col] as usize..columns[col + 1] as usize;
-        // A column holds a few cells on a surface: a linear walk.
-        let mut first = all.end;
-        let mut end = all.end;
-        for c in all {
-            let k = self.coords[c][2] as i64;
-            if k < k0 {
-                continue;
-            }
-            if k > k1 {
-                end = c;
-                break;
-            }
-            first = first.min(c);
-        }
-        first.min(end)..end
+        let (start, end) = (columns[col] as usize, columns[col + 1] as usize);
+        // A column holds a few cells on a surface, in increasing z: a linear walk.
+        let z = |c: &&[u64; 3]| c[2] as i64;
+        let below = self.coords[start..end].iter().take_while(|c| z(c) < k0);
+        let first = start + below.count();
+        let within = self.coords[first..end].iter().take_while(|c| z(c) <= k1);
+        first..first + within.count()
     }
 
     /// The sorted positions of the points of cells `(i, j, k0..=k1)` (inside the box): one
@@ -286,8 +283,8 @@ impl CellGrid {
         if let Some(dense) = &self.dense {
             return dense[key(k0)] as usize..dense[key(k1) + 1] as usize;
         }
-        let cells = if self.columns.is_some() {
-            self.column_cells(i, j, k0, k1)
+        let cells = if let Some(columns) = &self.columns {
+            self.column_cells(columns, i, j, k0, k1)
         } else {
             let mut found = (k0..=k1).filter_map(|k| self.table.get(key(k) as u64));
             match found.next() {
