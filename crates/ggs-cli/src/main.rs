@@ -72,6 +72,21 @@ pub fn emit(s: &str) -> anyhow::Result<()> {
     }
 }
 
+/// The error and its causes, joined by ": ", leaving out a cause whose text the message
+/// already holds (the library's I/O errors print their source themselves, so anyhow's `{:#}`
+/// would say "No such file or directory" twice).
+fn error_text(e: &anyhow::Error) -> String {
+    let mut text = e.to_string();
+    for cause in e.chain().skip(1) {
+        let cause = cause.to_string();
+        if !text.contains(&cause) {
+            text.push_str(": ");
+            text.push_str(&cause);
+        }
+    }
+    text
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     tracing_subscriber::fmt()
@@ -95,8 +110,28 @@ fn main() -> ExitCode {
     match outcome {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("error: {e:#}");
+            eprintln!("error: {}", error_text(&e));
             ExitCode::from(2)
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::error_text;
+
+    #[test]
+    fn a_cause_is_said_once() {
+        let io = std::io::Error::new(std::io::ErrorKind::NotFound, "no such file");
+        let e = anyhow::Error::new(ggs::GgsError::Io {
+            path: "a.ply".into(),
+            source: io,
+        });
+        assert_eq!(error_text(&e), "a.ply: no such file");
+        let wrapped = e.context("reading the source");
+        assert_eq!(
+            error_text(&wrapped),
+            "reading the source: a.ply: no such file"
+        );
     }
 }

@@ -180,6 +180,13 @@ fn format_errors_name_the_file_and_exit_2() {
         "--format: unknown format 'gif'",
     );
     fails(&["info", s(&d.join("missing.las"))], "missing.las");
+    let o = ggs(&["info", s(&d.join("missing.las"))]);
+    let said = String::from_utf8_lossy(&o.stderr).to_string();
+    assert_eq!(said.lines().count(), 1, "{said}");
+    assert!(
+        said.matches("(os error").count() <= 1,
+        "the cause said twice: {said}"
+    );
     let e57 = d.join("one.e57");
     ok(&["convert", "-q", s(&good), s(&e57)]);
     fails(
