@@ -451,7 +451,11 @@ fn print_verification(v: &Verification) -> Result<()> {
 fn print_timings(reg: &Registration, read_ms: f64, total_ms: f64) -> Result<()> {
     let r = &reg.search;
     let t = &r.timings;
-    let cpu = t.cpu_voxelize_ms + t.cpu_forward_ms + t.cpu_product_ms + t.cpu_inverse_ms;
+    let cpu = t.cpu_voxelize_ms
+        + t.cpu_forward_ms
+        + t.cpu_product_ms
+        + t.cpu_inverse_ms
+        + t.cpu_direct_ms;
     let pct = |v: f64| if cpu > 0.0 { 100.0 * v / cpu } else { 0.0 };
     outln!();
     outln!("stage                              wall ms     CPU ms  share of scoring CPU");
@@ -475,6 +479,7 @@ fn print_timings(reg: &Registration, read_ms: f64, total_ms: f64) -> Result<()> 
         ("  forward FFT (z, y)", t.cpu_forward_ms),
         ("  FFT x, spectrum product, iFFT x", t.cpu_product_ms),
         ("  inverse FFT (y, z) + argmax", t.cpu_inverse_ms),
+        ("  direct correlation (coarse)", t.cpu_direct_ms),
     ] {
         outln!("{name:<32} {:>10} {v:>10.1}  {:>5.1} %", "", pct(v));
     }

@@ -163,6 +163,8 @@ pub struct StageTimes {
     pub forward: Duration,
     pub product: Duration,
     pub inverse: Duration,
+    /// Direct correlation of small grids (gathering their cells included).
+    pub direct: Duration,
     /// Largest distance of an exact-path output from its integer.
     pub max_rounding_error: f64,
     /// Nominal FFT floating-point operations ([`Geometry::flops`]).
@@ -175,6 +177,7 @@ impl StageTimes {
         self.forward += o.forward;
         self.product += o.product;
         self.inverse += o.inverse;
+        self.direct += o.direct;
         self.max_rounding_error = self.max_rounding_error.max(o.max_rounding_error);
         self.flops += o.flops;
     }

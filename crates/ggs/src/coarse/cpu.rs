@@ -29,6 +29,7 @@
 //! f64 every rotation whose bound reaches the best exact score, so its picks are the f64 ones.
 
 pub use super::correlator::{ApproxBest, BestOffset, Candidates, MAX_CANDIDATES};
+use super::direct::{DirectKernel, DirectScratch};
 use super::geometry::X_BLOCK;
 pub use super::geometry::{fast_len, is_3_smooth, Geometry};
 use super::grid_view::GridView;
@@ -107,6 +108,11 @@ pub struct Workspace<T: Real = f64> {
     pub t_product: Duration,
     /// Time spent in the inverse transforms (y, z) and the argmax.
     pub t_inverse: Duration,
+    /// Buffers of the direct correlation ([`Workspace::direct_best`]), its time, and the
+    /// nominal FLOPs of the transforms it replaced (rounded per rotation).
+    direct: DirectScratch,
+    pub t_direct: Duration,
+    pub direct_flops: u64,
     /// Largest |v − round(v)| seen: how far the FFT output was from the exact integers.
     pub max_rounding_error: f64,
 }
@@ -148,6 +154,31 @@ impl<T: Real> Workspace<T> {
                 }
             }
         }
+    }
+
+    /// The exact best offset of the current source grid by direct correlation with `kernel`
+    /// ([`super::direct`]), or `None` when the transforms of `geo` are expected to be faster
+    /// (or the grid is too large for 16-bit sums).
+    pub fn direct_best(&mut self, kernel: &DirectKernel, geo: &Geometry) -> Option<BestOffset> {
+        let t = Instant::now();
+        let (cells, strides, ns) = (&self.real, [self.ay * self.lz, self.lz], self.ns);
+        let occupied = DirectKernel::gather(cells, strides, ns, &mut self.direct);
+        let best = if kernel.cheaper_than(geo, ns, occupied) {
+            kernel.best(ns, &mut self.direct)
+        } else {
+            None
+        };
+        if best.is_some() {
+            self.direct_flops += geo.flops(ns).round() as u64;
+        }
+        self.t_direct += t.elapsed();
+        best
+    }
+
+    /// The current source grid: its cells (cell `(i, j, k)` at `i·sx + j·sy + k`), the strides
+    /// `[sx, sy]` and its dims.
+    pub fn source_grid(&self) -> (&[T], [usize; 2], [usize; 3]) {
+        (&self.real, [self.ay * self.lz, self.lz], self.ns)
     }
 
     /// Mark cell (i, j, k) of the current source grid as occupied.

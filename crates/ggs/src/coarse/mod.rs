@@ -37,6 +37,7 @@ mod blocks;
 pub mod config;
 pub mod correlator;
 pub mod cpu;
+pub mod direct;
 pub mod extents;
 mod fine;
 pub mod geometry;

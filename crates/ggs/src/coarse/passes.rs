@@ -12,11 +12,12 @@ use super::correlator::{
     RotatedSources, Scores, StageTimes,
 };
 use super::cpu::{CpuCorrelator, Real, Workspace};
+use super::direct::DirectKernel;
 use super::geometry::Geometry;
 use super::sized::SizedPlans;
 use super::voxel::Occupancy;
 use crate::error::{GgsError, Result};
-use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
@@ -28,9 +29,10 @@ pub struct CpuBackend;
 // One plan per search level, boxed behind `dyn Correlator`: the size difference costs nothing.
 #[allow(clippy::large_enum_variant)]
 pub enum CpuPlan {
-    /// Rotations are ranked by [`CpuCorrelator::rounded_best`], each at the smallest plan
+    /// Rotations are ranked by exact integers: direct correlation where it is cheaper
+    /// ([`DirectKernel`]), else [`CpuCorrelator::rounded_best`], each at the smallest plan
     /// that holds it (the ranking does not depend on the plan).
-    Approximate(SizedPlans),
+    Approximate(SizedPlans, Option<DirectKernel>),
     /// The kernel is kept for exact scores at a few candidate offsets and for the smaller
     /// approximate plans ([`SizedPlans`]).
     Mixed(CpuCorrelator<f64>, SizedPlans),
@@ -45,10 +47,10 @@ impl Backend for CpuBackend {
         scores: Scores,
     ) -> Result<Box<dyn Correlator>> {
         Ok(Box::new(match scores {
-            Scores::Approximate => CpuPlan::Approximate(SizedPlans::new(
-                CpuCorrelator::new(geo, kernel),
-                kernel.clone(),
-            )),
+            Scores::Approximate => CpuPlan::Approximate(
+                SizedPlans::new(CpuCorrelator::new(geo, kernel), kernel.clone()),
+                DirectKernel::new(&geo, kernel),
+            ),
             Scores::Mixed => {
                 let exact = CpuCorrelator::<f64>::new(geo, kernel);
                 let approx = CpuCorrelator::<f32>::from_f64(&exact);
@@ -63,7 +65,7 @@ impl CpuPlan {
     /// `(|K|, n_k, geometry)`, the same in every correlator of the plan.
     fn kernel(&self) -> (i64, i64, &Geometry) {
         match self {
-            CpuPlan::Approximate(p) | CpuPlan::Mixed(_, p) => {
+            CpuPlan::Approximate(p, _) | CpuPlan::Mixed(_, p) => {
                 let c = p.full();
                 (c.kernel_cells, c.kernel_occupied, c.geometry())
             }
@@ -97,7 +99,7 @@ impl Correlator for CpuPlan {
                     c.best_offset(ws)
                 })
             }
-            CpuPlan::Approximate(_) => Err(GgsError::param(
+            CpuPlan::Approximate(..) => Err(GgsError::param(
                 "scores",
                 "this correlator was planned for approximate scores only",
             )),
@@ -156,9 +158,12 @@ impl Correlator for CpuPlan {
         indices: &[usize],
     ) -> Result<(Vec<ApproxBest>, StageTimes)> {
         match self {
-            CpuPlan::Approximate(sized) => {
-                sized_pass(ctl, src, sized, indices, |c, ws| c.rounded_best(ws))
-            }
+            CpuPlan::Approximate(sized, direct) => sized_pass(ctl, src, sized, indices, |c, ws| {
+                direct
+                    .as_ref()
+                    .and_then(|d| ws.direct_best(d, c.geometry()))
+                    .map_or_else(|| c.rounded_best(ws), ApproxBest::from)
+            }),
             CpuPlan::Mixed(_, sized) => {
                 sized_pass(ctl, src, sized, indices, |c, ws| c.approx_best(ws, true))
             }
@@ -253,6 +258,7 @@ fn run_sized<T: Real, R: Send + Copy>(
         done: AtomicUsize::new(0),
         slots: Mutex::new(vec![None; indices.len()]),
         stats: Mutex::new(StageTimes::default()),
+        skipped_flops: AtomicU64::new(0),
         cancelled: AtomicBool::new(false),
     };
     let workers = ctl.threads.min(indices.len()).max(1);
@@ -264,14 +270,16 @@ fn run_sized<T: Real, R: Send + Copy>(
     if pass.cancelled.load(Ordering::Relaxed) {
         return Err(GgsError::Cancelled);
     }
-    // The FLOPs summed in the order of `indices`, not of the workers: the same bits at any
-    // thread count.
+    // The FLOPs summed in the order of `indices`, not of the workers, less those of the
+    // rotations correlated directly (whole numbers, so their sum does not depend on the order
+    // either): the same bits at any thread count.
     let mut times = pass.stats.into_inner().expect("workers finished");
-    times.flops = indices
+    let all: f64 = indices
         .iter()
         .zip(plan_of)
         .filter_map(|(&k, &p)| Some(plans[p].geometry().flops(src.boxes[k]?.dims)))
         .sum();
+    times.flops = all - pass.skipped_flops.into_inner() as f64;
     let results = pass
         .slots
         .into_inner()
@@ -296,6 +304,8 @@ struct Pass<'p, 'c, 's, T: Real, R> {
     done: AtomicUsize,
     slots: Mutex<Vec<Option<R>>>,
     stats: Mutex<StageTimes>,
+    /// Nominal FLOPs of the rotations correlated directly instead ([`Workspace::direct_best`]).
+    skipped_flops: AtomicU64,
     cancelled: AtomicBool,
 }
 
@@ -344,9 +354,12 @@ impl<T: Real, R: Send + Copy> Pass<'_, '_, '_, T, R> {
             forward: ws.t_forward,
             product: ws.t_product,
             inverse: ws.t_inverse,
+            direct: ws.t_direct,
             max_rounding_error: ws.max_rounding_error,
             flops: 0.0,
         });
+        self.skipped_flops
+            .fetch_add(ws.direct_flops, Ordering::Relaxed);
     }
 }
 
@@ -362,6 +375,7 @@ mod tests {
             forward: ms(2),
             product: ms(3),
             inverse: ms(4),
+            direct: ms(5),
             max_rounding_error: 1e-9,
             flops: 10.0,
         };
@@ -370,12 +384,13 @@ mod tests {
             forward: ms(20),
             product: ms(30),
             inverse: ms(40),
+            direct: ms(50),
             max_rounding_error: 1e-12,
             flops: 5.0,
         });
         assert_eq!(
-            (a.voxelize, a.forward, a.product, a.inverse),
-            (ms(11), ms(22), ms(33), ms(44))
+            (a.voxelize, a.forward, a.product, a.inverse, a.direct),
+            (ms(11), ms(22), ms(33), ms(44), ms(55))
         );
         assert_eq!((a.max_rounding_error, a.flops), (1e-9, 15.0));
     }

@@ -100,6 +100,7 @@ pub fn coarse_register_with(
         cpu_forward_ms: ms(tally.times.forward),
         cpu_product_ms: ms(tally.times.product),
         cpu_inverse_ms: ms(tally.times.inverse),
+        cpu_direct_ms: ms(tally.times.direct),
         coarse_level_ms,
         rescore_ms: ms(tally.rescore_time),
     };

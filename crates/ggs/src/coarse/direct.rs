@@ -1,0 +1,403 @@
+//! Direct correlation of small grids: the match score of every offset summed cell by cell
+//! instead of by FFT, in exact 16-bit integers.
+//!
+//! The match score (docs/method.md, "Exact integers") is
+//!
+//! `m(a) = Σ_u O_s[a − C + u]·W[u] = Σ_x O_s[x]·W[x + C − a]`, `W = 6·O_k − 1` on the kernel
+//! grid and 0 outside it,
+//!
+//! so each occupied source cell `x` adds the kernel, reversed on every axis, to the offsets
+//! `a = x − P + v` with `v ∈ [0, NR)` and `P = NR − 1 − C` (`v = NR − 1 − u`). For a sparse source (a surface:
+//! `n` occupied cells of `NS³`) that is `n·NRx·NRy` additions of one reversed kernel row
+//! along z, 16 offsets at a time, against `O(L³ log L)` for the transforms, whose fixed cost
+//! per call dominates on the coarse level's grids (12³ to 16³). Which is cheaper is decided
+//! per rotation by [`DirectKernel::cheaper_than`].
+//!
+//! Exactness: every partial sum lies in `[−n, 5·n]` (each source cell adds at most 5 and at
+//! least −1 to an offset), so with `n ≤ 6553` no 16-bit sum overflows and the scores are the
+//! exact integers an f64 correlation rounds to. The best offset is the first in x-major C
+//! order among the highest, the rule of [`super::correlator::Correlator::exact`].
+
+use super::correlator::BestOffset;
+use super::geometry::Geometry;
+use super::grid_view::Real;
+use super::voxel::Occupancy;
+
+/// Offsets summed at once along z (one 256-bit register of 16-bit integers).
+const LANES: usize = 16;
+
+/// Largest number of occupied source cells whose partial sums fit `i16` (`5·n ≤ 32 767`).
+pub const MAX_OCCUPIED: usize = 6553;
+
+/// Nanoseconds of a direct correlation's fixed part (gathering the cells, the argmax) and of
+/// one 16-offset addition, and of one nominal FFT floating-point operation, fitted to the
+/// coarse levels of four pairs on the development machine (AMD EPYC, AVX2;
+/// `examples/direct_probe.rs`): the weights of the choice between the two paths. Only the
+/// time depends on them, never the scores.
+const NS_FIXED: f64 = 500.0;
+const NS_PER_ADD: f64 = 1.0;
+const NS_PER_FLOP: f64 = 0.08;
+
+/// The reversed kernel `W` laid out for direct correlation, planned for one geometry.
+#[derive(Debug, Clone)]
+pub struct DirectKernel {
+    nr: [usize; 3],
+    /// `P = NR − 1 − C` per axis: offset `a` receives `W_rev[v]` from a source cell `x`
+    /// when `a = x − P + v`.
+    p: [usize; 3],
+    /// Row `(vx, vy)` of the reversed kernel at `(vx·NRy + vy)·row_len`: `pad` zeros, then
+    /// `W_rev[vx][vy][0..NRz]`, then zeros to `row_len`.
+    rows: Vec<i16>,
+    pad: usize,
+    row_len: usize,
+    /// Largest source grid along z the rows are padded for.
+    max_nsz: usize,
+}
+
+/// A worker's buffers for direct correlation, reused across rotations.
+#[derive(Debug, Clone, Default)]
+pub struct DirectScratch {
+    /// Occupied z of each column, and the columns: `(i, j, start, end)` into `zs`.
+    zs: Vec<u16>,
+    columns: Vec<(u16, u16, u32, u32)>,
+    /// Where each cell's kernel rows start (`pad + P_z − z`), in the order of `zs`.
+    starts: Vec<u32>,
+    /// Scores, layout `[ax][ay][chunk·16 + lane]`.
+    acc: Vec<i16>,
+}
+
+impl DirectKernel {
+    /// The kernel of `kernel` for sources up to `geo.source_max`, or `None` when its grid is
+    /// too long along z for the padding to stay small (more than 8 chunks of 16).
+    pub fn new(geo: &Geometry, kernel: &Occupancy) -> Option<DirectKernel> {
+        let nr = kernel.dims;
+        let max_nsz = geo.source_max[2];
+        if nr[2] > 8 * LANES || max_nsz > 8 * LANES || nr[0] * nr[1] > 1 << 16 {
+            return None;
+        }
+        let p = [0, 1, 2].map(|d| nr[d] - 1 - geo.center[d]);
+        // Offset `a_z = c·16 + l` takes `v_z = a_z + P_z − z` from a source cell at z: entry
+        // `pad + v_z` of its row, zero outside `[0, NR_z)`.
+        let pad = max_nsz;
+        let row_len = pad + p[2] + max_nsz.div_ceil(LANES) * LANES + LANES;
+        let mut rows = vec![0i16; nr[0] * nr[1] * row_len];
+        for vx in 0..nr[0] {
+            for vy in 0..nr[1] {
+                let row = &mut rows[(vx * nr[1] + vy) * row_len..][..row_len];
+                for vz in 0..nr[2] {
+                    let occupied = kernel.get(nr[0] - 1 - vx, nr[1] - 1 - vy, nr[2] - 1 - vz);
+                    row[pad + vz] = if occupied { 5 } else { -1 };
+                }
+            }
+        }
+        Some(DirectKernel {
+            nr,
+            p,
+            rows,
+            pad,
+            row_len,
+            max_nsz,
+        })
+    }
+
+    /// Whether correlating `occupied` source cells directly on a grid of dims `ns` is expected
+    /// to take less time than the transforms of `geo` (nominal FLOPs, [`Geometry::flops`]).
+    pub fn cheaper_than(&self, geo: &Geometry, ns: [usize; 3], occupied: usize) -> bool {
+        NS_FIXED + self.additions(ns, occupied) * NS_PER_ADD < geo.flops(ns) * NS_PER_FLOP
+    }
+
+    /// 16-offset additions of a direct correlation of `occupied` cells on a grid of dims `ns`
+    /// (an upper bound: rows that fall outside the offsets are skipped).
+    pub fn additions(&self, ns: [usize; 3], occupied: usize) -> f64 {
+        occupied as f64 * (self.nr[0] * self.nr[1]) as f64 * chunks(ns[2]) as f64
+    }
+
+    /// Collect the occupied cells of the source grid `cells` (cell `(i, j, k)` at
+    /// `i·sx + j·sy + k`, dims `ns`) into `scratch`; returns how many there are.
+    pub fn gather<T: Real>(
+        cells: &[T],
+        [sx, sy]: [usize; 2],
+        ns: [usize; 3],
+        scratch: &mut DirectScratch,
+    ) -> usize {
+        scratch.zs.clear();
+        scratch.columns.clear();
+        for i in 0..ns[0] {
+            for j in 0..ns[1] {
+                let start = scratch.zs.len();
+                let row = &cells[i * sx + j * sy..][..ns[2]];
+                // 32 cells at a time as a bit mask (a compare and a move-mask in vector
+                // code), then one push per occupied cell: most of a surface's cells are empty.
+                for (c, chunk) in row.chunks(32).enumerate() {
+                    let mut mask = chunk
+                        .iter()
+                        .enumerate()
+                        .fold(0u32, |m, (k, v)| m | (u32::from(*v != T::zero()) << k));
+                    while mask != 0 {
+                        scratch
+                            .zs
+                            .push((c * 32) as u16 + mask.trailing_zeros() as u16);
+                        mask &= mask - 1;
+                    }
+                }
+                let end = scratch.zs.len();
+                if end > start {
+                    scratch
+                        .columns
+                        .push((i as u16, j as u16, start as u32, end as u32));
+                }
+            }
+        }
+        scratch.zs.len()
+    }
+
+    /// The best offset of the source gathered in `scratch` ([`Self::gather`]) on a grid of
+    /// dims `ns`, or `None` when it has more than [`MAX_OCCUPIED`] cells or is too long
+    /// along z for this kernel.
+    pub fn best(&self, ns: [usize; 3], scratch: &mut DirectScratch) -> Option<BestOffset> {
+        if scratch.zs.len() > MAX_OCCUPIED || ns[2] > self.max_nsz {
+            return None;
+        }
+        let width = chunks(ns[2]) * LANES;
+        scratch.acc.clear();
+        scratch.acc.resize(ns[0] * ns[1] * width, 0);
+        // A source cell at z reads its kernel rows from `pad + P_z − z` on.
+        let first = self.pad + self.p[2];
+        scratch.starts.clear();
+        scratch
+            .starts
+            .extend(scratch.zs.iter().map(|&z| (first - z as usize) as u32));
+        let sums = Sums {
+            kernel: self,
+            ns,
+            width,
+        };
+        match crate::simd::level() {
+            #[cfg(target_arch = "x86_64")]
+            // SAFETY: `simd::level` returns Avx2 or wider only when the CPU has AVX2.
+            crate::simd::Level::Avx2 | crate::simd::Level::Avx512 => unsafe {
+                sums.add_all_avx2(&scratch.columns, &scratch.starts, &mut scratch.acc)
+            },
+            _ => sums.add_all(&scratch.columns, &scratch.starts, &mut scratch.acc),
+        }
+        Some(first_best(&scratch.acc, ns, width))
+    }
+}
+
+/// One rotation's accumulation: the kernel, the source grid's dims and the row width of the
+/// scores (16-bit integers, exact whatever the vector width).
+struct Sums<'a> {
+    kernel: &'a DirectKernel,
+    ns: [usize; 3],
+    width: usize,
+}
+
+impl Sums<'_> {
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn add_all_avx2(&self, columns: &[(u16, u16, u32, u32)], starts: &[u32], acc: &mut [i16]) {
+        self.add_all(columns, starts, acc)
+    }
+
+    /// Add every column's cells (their row starts `starts`) to the scores `acc`.
+    #[inline(always)]
+    fn add_all(&self, columns: &[(u16, u16, u32, u32)], starts: &[u32], acc: &mut [i16]) {
+        for &(i, j, from, to) in columns {
+            let starts = &starts[from as usize..to as usize];
+            self.add_column([i as usize, j as usize], starts, acc);
+        }
+    }
+
+    /// Add the reversed kernel of the cells of column `(i, j)` (their row starts `starts`) to
+    /// every offset row it reaches: `a_x = i − P_x + v_x ∈ [0, NS_x)`, likewise y.
+    #[inline(always)]
+    fn add_column(&self, [i, j]: [usize; 2], starts: &[u32], acc: &mut [i16]) {
+        let k = self.kernel;
+        let [nrx, nry, _] = k.nr;
+        let [px, py, _] = k.p;
+        let (ns, width) = (self.ns, self.width);
+        // v ≥ P − i (a ≥ 0) and v < NS + P − i (a < NS); i < NS.
+        let (vy0, vy1) = (py.saturating_sub(j), nry.min(ns[1] + py - j));
+        if vy0 >= vy1 {
+            return;
+        }
+        let ay0 = j + vy0 - py;
+        for vx in px.saturating_sub(i)..nrx.min(ns[0] + px - i) {
+            let ax = i + vx - px;
+            // Rows vy0.. of the kernel and ay0.. of the scores, walked together.
+            let kernel_rows = k.rows[(vx * nry + vy0) * k.row_len..].chunks(k.row_len);
+            let out_rows = acc[(ax * ns[1] + ay0) * width..].chunks_exact_mut(width);
+            if width == LANES {
+                // One chunk (z ≤ 16, every coarse level here): fixed-size rows.
+                let kernel_rows = k.rows[(vx * nry + vy0) * k.row_len..].chunks(k.row_len);
+                let out_rows = acc[(ax * ns[1] + ay0) * LANES..].chunks_exact_mut(LANES);
+                for (kernel_row, out) in kernel_rows.zip(out_rows).take(vy1 - vy0) {
+                    let out: &mut [i16; LANES] = out.try_into().expect("16 lanes");
+                    let mut sum = *out;
+                    for &s in starts {
+                        let w: &[i16; LANES] =
+                            kernel_row[s as usize..][..LANES].try_into().expect("16");
+                        for l in 0..LANES {
+                            sum[l] = sum[l].wrapping_add(w[l]);
+                        }
+                    }
+                    *out = sum;
+                }
+                continue;
+            }
+            for (kernel_row, out) in kernel_rows.zip(out_rows).take(vy1 - vy0) {
+                add_shifted(out, kernel_row, starts);
+            }
+        }
+    }
+}
+
+/// `out[c·16 + l] += Σ_s row[s + c·16 + l]` over the starts `s`.
+#[inline(always)]
+fn add_shifted(out: &mut [i16], row: &[i16], starts: &[u32]) {
+    for (c, lanes) in out.chunks_exact_mut(LANES).enumerate() {
+        let row = &row[c * LANES..];
+        let mut sum = [0i16; LANES];
+        sum.copy_from_slice(lanes);
+        for &s in starts {
+            let w = &row[s as usize..s as usize + LANES];
+            for l in 0..LANES {
+                sum[l] = sum[l].wrapping_add(w[l]);
+            }
+        }
+        lanes.copy_from_slice(&sum);
+    }
+}
+
+/// 16-offset chunks of a row of `nsz` offsets.
+fn chunks(nsz: usize) -> usize {
+    nsz.div_ceil(LANES)
+}
+
+/// The highest score of `acc` over the offsets `[0, NS)` and its first offset in x-major C
+/// order.
+fn first_best(acc: &[i16], ns: [usize; 3], width: usize) -> BestOffset {
+    let mut best = i16::MIN;
+    let mut offset = [0; 3];
+    for ax in 0..ns[0] {
+        for ay in 0..ns[1] {
+            let row = &acc[(ax * ns[1] + ay) * width..][..ns[2]];
+            let top = row.iter().copied().fold(i16::MIN, i16::max);
+            if top > best {
+                best = top;
+                let az = row.iter().position(|&v| v == top).unwrap_or(0);
+                offset = [ax, ay, az];
+            }
+        }
+    }
+    BestOffset {
+        match_score: i64::from(best),
+        offset,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::test_rng::uniform;
+
+    /// `m(a)` straight from its definition, and the first best offset.
+    fn brute_best(src: &Occupancy, kernel: &Occupancy, center: [usize; 3]) -> BestOffset {
+        let ns = src.dims;
+        let nr = kernel.dims;
+        let mut best = BestOffset {
+            match_score: i64::MIN,
+            offset: [0; 3],
+        };
+        for ax in 0..ns[0] {
+            for ay in 0..ns[1] {
+                for az in 0..ns[2] {
+                    let mut m = 0i64;
+                    for ux in 0..nr[0] {
+                        for uy in 0..nr[1] {
+                            for uz in 0..nr[2] {
+                                let x = [ax + ux, ay + uy, az + uz];
+                                let inside =
+                                    (0..3).all(|d| x[d] >= center[d] && x[d] - center[d] < ns[d]);
+                                if inside
+                                    && src.get(x[0] - center[0], x[1] - center[1], x[2] - center[2])
+                                {
+                                    m += if kernel.get(ux, uy, uz) { 5 } else { -1 };
+                                }
+                            }
+                        }
+                    }
+                    if m > best.match_score {
+                        best = BestOffset {
+                            match_score: m,
+                            offset: [ax, ay, az],
+                        };
+                    }
+                }
+            }
+        }
+        best
+    }
+
+    fn random_grid(dims: [usize; 3], fill: f64, next: &mut impl FnMut() -> f64) -> Occupancy {
+        let cells = (0..dims.iter().product()).map(|_| next() < fill).collect();
+        Occupancy { dims, cells }
+    }
+
+    fn dense(src: &Occupancy, lz: usize) -> (Vec<f32>, [usize; 2]) {
+        let [nx, ny, nz] = src.dims;
+        let mut cells = vec![0.0f32; nx * ny * lz];
+        for i in 0..nx {
+            for j in 0..ny {
+                for k in 0..nz {
+                    if src.get(i, j, k) {
+                        cells[(i * ny + j) * lz + k] = 1.0;
+                    }
+                }
+            }
+        }
+        (cells, [ny * lz, lz])
+    }
+
+    #[test]
+    fn direct_scores_equal_the_definition_ties_included() {
+        let mut next = uniform(20261204);
+        for round in 0..60 {
+            let mut dim = |lo: usize, hi: usize| lo + (next() * (hi - lo + 1) as f64) as usize;
+            let nr = [dim(1, 9), dim(1, 9), dim(1, 20)];
+            let ns = [dim(1, 10), dim(1, 10), dim(1, 36)];
+            // Sparse and dense fills; a few all-empty sources (every score 0 or less).
+            let fill = [0.0, 0.05, 0.3, 0.9][round % 4];
+            let kernel = random_grid(nr, 0.4, &mut next);
+            let src = random_grid(ns, fill, &mut next);
+            let geo = Geometry::new(nr, [ns[0], ns[1], ns[2] + round % 3]);
+            let direct = DirectKernel::new(&geo, &kernel).expect("small kernel");
+            let (cells, strides) = dense(&src, ns[2] + 5);
+            let mut scratch = DirectScratch::default();
+            let n = DirectKernel::gather(&cells, strides, ns, &mut scratch);
+            assert_eq!(n, src.occupied());
+            let got = direct.best(ns, &mut scratch).expect("few cells");
+            assert_eq!(got, brute_best(&src, &kernel, geo.center), "round {round}");
+        }
+    }
+
+    #[test]
+    fn too_many_cells_or_too_long_a_source_is_declined() {
+        let kernel = Occupancy {
+            dims: [2, 2, 2],
+            cells: vec![true; 8],
+        };
+        let geo = Geometry::new([2, 2, 2], [200, 40, 40]);
+        let direct = DirectKernel::new(&geo, &kernel).expect("small kernel");
+        let ns = [200, 40, 40];
+        let cells = vec![1.0f32; 200 * 40 * 40];
+        let mut scratch = DirectScratch::default();
+        assert_eq!(
+            DirectKernel::gather(&cells, [1600, 40], ns, &mut scratch),
+            320_000
+        );
+        assert!(direct.best(ns, &mut scratch).is_none());
+        let long = Geometry::new([2, 2, 2], [4, 4, 200]);
+        assert!(DirectKernel::new(&long, &kernel).is_none());
+    }
+}
