@@ -40,7 +40,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut ws: Vec<Workspace<f32>> = plans.iter().map(|p| p.workspace()).collect();
     let mut scratch = DirectScratch::default();
     let (mut t_fft, mut t_direct, mut occupied, mut chosen) = (0.0, 0.0, 0usize, 0usize);
-    let (mut adds, mut flops, mut bounded) = (0.0, 0.0, 0usize);
+    let (mut adds, mut flops, mut bounded, mut rows_touched) = (0.0, 0.0, 0usize, 0.0);
     for &k in &all {
         let (b, p) = (boxes[k].ok_or("no box")?, assigned.plan_of[k]);
         let w = &mut ws[p];
@@ -54,6 +54,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         occupied += n;
         chosen += usize::from(direct.cheaper_than(plans[p].geometry(), ns, n));
         adds += direct.additions(ns, n);
+        rows_touched += direct.rows_touched(&scratch) as f64;
         flops += plans[p].geometry().flops(ns);
         let t = Instant::now();
         let by_fft = plans[p].rounded_best(w);
@@ -79,8 +80,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         occupied as f64 / n
     );
     println!(
-        "{:.0} additions of 16 offsets, {:.0} nominal FLOPs a rotation",
+        "{:.0} additions of 16 offsets in {:.0} rows, {:.0} nominal FLOPs a rotation",
         adds / n,
+        rows_touched / n,
         flops / n
     );
     println!(

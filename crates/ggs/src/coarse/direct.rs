@@ -29,14 +29,13 @@ const LANES: usize = 16;
 /// Largest number of occupied source cells whose partial sums fit `i16` (`5·n ≤ 32 767`).
 pub const MAX_OCCUPIED: usize = 6553;
 
-/// Nanoseconds of a direct correlation's fixed part (gathering the cells, the argmax) and of
-/// one 16-offset addition, and of one nominal FFT floating-point operation, fitted to the
-/// coarse levels of four pairs on the development machine (AMD EPYC, AVX2;
-/// `examples/direct_probe.rs`): the weights of the choice between the two paths. Only the
-/// time depends on them, never the scores.
-const NS_FIXED: f64 = 500.0;
-const NS_PER_ADD: f64 = 1.0;
-const NS_PER_FLOP: f64 = 0.08;
+/// Direct correlation is chosen when it needs fewer 16-offset additions than this many per
+/// nominal FLOP of the transforms ([`Geometry::flops`]). Fitted on the coarse levels of four
+/// pairs on the development machine (AMD EPYC, AVX2; `examples/direct_probe.rs`), where the
+/// time of direct over transforms was 0.54 at 0.026 additions a FLOP (the generated human
+/// pair), 0.63 at 0.038 (lidar_koide), 0.89 at 0.057 (3dmatch_demo) and 0.95 at 0.062 (the
+/// bunny pair): even near 0.066. Only the time depends on it, never the scores.
+const ADDITIONS_PER_FLOP: f64 = 0.06;
 
 /// The reversed kernel `W` laid out for direct correlation, planned for one geometry.
 #[derive(Debug, Clone)]
@@ -103,7 +102,13 @@ impl DirectKernel {
     /// Whether correlating `occupied` source cells directly on a grid of dims `ns` is expected
     /// to take less time than the transforms of `geo` (nominal FLOPs, [`Geometry::flops`]).
     pub fn cheaper_than(&self, geo: &Geometry, ns: [usize; 3], occupied: usize) -> bool {
-        NS_FIXED + self.additions(ns, occupied) * NS_PER_ADD < geo.flops(ns) * NS_PER_FLOP
+        self.additions(ns, occupied) < geo.flops(ns) * ADDITIONS_PER_FLOP
+    }
+
+    /// Score rows a direct correlation of the cells gathered in `scratch` adds to, each once
+    /// per column (an upper bound, as [`Self::additions`]).
+    pub fn rows_touched(&self, scratch: &DirectScratch) -> usize {
+        scratch.columns.len() * self.nr[0] * self.nr[1]
     }
 
     /// 16-offset additions of a direct correlation of `occupied` cells on a grid of dims `ns`
@@ -227,29 +232,34 @@ impl Sums<'_> {
             // Rows vy0.. of the kernel and ay0.. of the scores, walked together.
             let kernel_rows = k.rows[(vx * nry + vy0) * k.row_len..].chunks(k.row_len);
             let out_rows = acc[(ax * ns[1] + ay0) * width..].chunks_exact_mut(width);
+            // Plain loops: an iterator adapter's `for_each` is not inlined into the AVX2 body.
+            let rows = kernel_rows.zip(out_rows).take(vy1 - vy0);
             if width == LANES {
-                // One chunk (z ≤ 16, every coarse level here): fixed-size rows.
-                let kernel_rows = k.rows[(vx * nry + vy0) * k.row_len..].chunks(k.row_len);
-                let out_rows = acc[(ax * ns[1] + ay0) * LANES..].chunks_exact_mut(LANES);
-                for (kernel_row, out) in kernel_rows.zip(out_rows).take(vy1 - vy0) {
-                    let out: &mut [i16; LANES] = out.try_into().expect("16 lanes");
-                    let mut sum = *out;
-                    for &s in starts {
-                        let w: &[i16; LANES] =
-                            kernel_row[s as usize..][..LANES].try_into().expect("16");
-                        for l in 0..LANES {
-                            sum[l] = sum[l].wrapping_add(w[l]);
-                        }
-                    }
-                    *out = sum;
+                for (kernel_row, out) in rows {
+                    add_one_chunk(out, kernel_row, starts);
                 }
-                continue;
-            }
-            for (kernel_row, out) in kernel_rows.zip(out_rows).take(vy1 - vy0) {
-                add_shifted(out, kernel_row, starts);
+            } else {
+                for (kernel_row, out) in rows {
+                    add_shifted(out, kernel_row, starts);
+                }
             }
         }
     }
+}
+
+/// [`add_shifted`] for a row of one chunk (z ≤ 16: every coarse level measured), with
+/// fixed-size arrays: half the time on the coarse levels of the human and bunny pairs.
+#[inline(always)]
+fn add_one_chunk(out: &mut [i16], row: &[i16], starts: &[u32]) {
+    let out: &mut [i16; LANES] = out.try_into().expect("one chunk");
+    let mut sum = *out;
+    for &s in starts {
+        let w: &[i16; LANES] = row[s as usize..][..LANES].try_into().expect("16 lanes");
+        for l in 0..LANES {
+            sum[l] = sum[l].wrapping_add(w[l]);
+        }
+    }
+    *out = sum;
 }
 
 /// `out[c·16 + l] += Σ_s row[s + c·16 + l]` over the starts `s`.
