@@ -39,7 +39,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let direct = DirectKernel::new(&geo, &kernel).ok_or("kernel too long for direct")?;
     let mut ws: Vec<Workspace<f32>> = plans.iter().map(|p| p.workspace()).collect();
     let mut scratch = DirectScratch::default();
-    let (mut t_fft, mut t_direct, mut occupied, mut chosen) = (0.0, 0.0, 0usize, 0usize);
+    let (mut t_fft, mut t_direct, mut runs, mut chosen) = (0.0, 0.0, 0usize, 0usize);
+    let mut cells_total = 0usize;
     let (mut adds, mut flops, mut bounded, mut rows_touched) = (0.0, 0.0, 0usize, 0.0);
     for &k in &all {
         let (b, p) = (boxes[k].ok_or("no box")?, assigned.plan_of[k]);
@@ -49,9 +50,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let t = Instant::now();
         let (cells, strides, ns) = w.source_grid();
         let n = DirectKernel::gather(cells, strides, ns, &mut scratch);
+        cells_total += scratch.cells();
         let by_direct = direct.best(ns, &mut scratch).ok_or("too many cells")?;
         t_direct += t.elapsed().as_secs_f64();
-        occupied += n;
+        runs += n;
         chosen += usize::from(direct.cheaper_than(plans[p].geometry(), ns, n));
         adds += direct.additions(ns, n);
         rows_touched += direct.rows_touched(&scratch) as f64;
@@ -74,10 +76,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
     let n = all.len() as f64;
     println!(
-        "{} rotations at voxel {s0}: kernel {:?}, {:.0} occupied source cells a rotation",
+        "{} rotations at voxel {s0}: kernel {:?}, {:.0} occupied source cells a rotation in {:.0} runs along z",
         all.len(),
         kernel.dims,
-        occupied as f64 / n
+        cells_total as f64 / n,
+        runs as f64 / n
     );
     println!(
         "{:.0} additions of 16 offsets in {:.0} rows, {:.0} nominal FLOPs a rotation",

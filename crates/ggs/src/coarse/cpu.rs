@@ -162,8 +162,8 @@ impl<T: Real> Workspace<T> {
     pub fn direct_best(&mut self, kernel: &DirectKernel, geo: &Geometry) -> Option<BestOffset> {
         let t = Instant::now();
         let (cells, strides, ns) = (&self.real, [self.ay * self.lz, self.lz], self.ns);
-        let occupied = DirectKernel::gather(cells, strides, ns, &mut self.direct);
-        let best = if kernel.cheaper_than(geo, ns, occupied) {
+        let runs = DirectKernel::gather(cells, strides, ns, &mut self.direct);
+        let best = if kernel.cheaper_than(geo, ns, runs) {
             kernel.best(ns, &mut self.direct)
         } else {
             None

@@ -35,7 +35,7 @@ pub const MAX_OCCUPIED: usize = 6553;
 /// time of direct over transforms was 0.54 at 0.026 additions a FLOP (the generated human
 /// pair), 0.63 at 0.038 (lidar_koide), 0.89 at 0.057 (3dmatch_demo) and 0.95 at 0.062 (the
 /// bunny pair): even near 0.066. Only the time depends on it, never the scores.
-const ADDITIONS_PER_FLOP: f64 = 0.06;
+const ADDITIONS_PER_FLOP: f64 = 0.035;
 
 /// The reversed kernel `W` laid out for direct correlation, planned for one geometry.
 #[derive(Debug, Clone)]
@@ -45,24 +45,42 @@ pub struct DirectKernel {
     /// when `a = x − P + v`.
     p: [usize; 3],
     /// Row `(vx, vy)` of the reversed kernel at `(vx·NRy + vy)·row_len`: `pad` zeros, then
-    /// `W_rev[vx][vy][0..NRz]`, then zeros to `row_len`.
-    rows: Vec<i16>,
+    /// `W_rev[vx][vy][0..NRz]`, then zeros to `row_len`; then the same rows summed over runs
+    /// of 2 to [`MAX_RUN`] cells, table `L − 1` at `(L − 1)·table_len`:
+    /// `R_L[q] = Σ_{d < L} W_pad[q − d]`, so that a run of `L` cells along z adds as one row.
+    tables: Vec<i16>,
     pad: usize,
     row_len: usize,
+    table_len: usize,
     /// Largest source grid along z the rows are padded for.
     max_nsz: usize,
 }
 
+/// Longest run of occupied cells along z added as one row (longer runs are split): runs of 1
+/// to 7 cells make 96 % of the columns of the bunny pair's coarse level.
+pub const MAX_RUN: usize = 8;
+
 /// A worker's buffers for direct correlation, reused across rotations.
 #[derive(Debug, Clone, Default)]
 pub struct DirectScratch {
-    /// Occupied z of each column, and the columns: `(i, j, start, end)` into `zs`.
-    zs: Vec<u16>,
+    /// Runs of occupied cells along z, `(first z, length ≤ MAX_RUN)`, column by column, and
+    /// the columns: `(i, j, start, end)` into `runs`.
+    runs: Vec<(u16, u16)>,
     columns: Vec<(u16, u16, u32, u32)>,
-    /// Where each cell's kernel rows start (`pad + P_z − z`), in the order of `zs`.
+    /// Occupied cells gathered.
+    cells: usize,
+    /// Where each run's kernel rows start in the tables (`(L − 1)·table_len + pad + P_z − z`),
+    /// in the order of `runs`.
     starts: Vec<u32>,
     /// Scores, layout `[ax][ay][chunk·16 + lane]`.
     acc: Vec<i16>,
+}
+
+impl DirectScratch {
+    /// Occupied cells gathered by the last [`DirectKernel::gather`].
+    pub fn cells(&self) -> usize {
+        self.cells
+    }
 }
 
 impl DirectKernel {
@@ -76,33 +94,49 @@ impl DirectKernel {
         }
         let p = [0, 1, 2].map(|d| nr[d] - 1 - geo.center[d]);
         // Offset `a_z = c·16 + l` takes `v_z = a_z + P_z − z` from a source cell at z: entry
-        // `pad + v_z` of its row, zero outside `[0, NR_z)`.
-        let pad = max_nsz;
-        let row_len = pad + p[2] + max_nsz.div_ceil(LANES) * LANES + LANES;
-        let mut rows = vec![0i16; nr[0] * nr[1] * row_len];
-        for vx in 0..nr[0] {
-            for vy in 0..nr[1] {
-                let row = &mut rows[(vx * nr[1] + vy) * row_len..][..row_len];
-                for vz in 0..nr[2] {
-                    let occupied = kernel.get(nr[0] - 1 - vx, nr[1] - 1 - vy, nr[2] - 1 - vz);
-                    row[pad + vz] = if occupied { 5 } else { -1 };
+        // `pad + v_z` of its row, zero outside `[0, NR_z)`. `v_z` runs from `P_z − (NS_z − 1)`
+        // to `16·chunks − 1 + P_z`, so the rows hold exactly that (small rows keep the tables
+        // of runs in the first-level cache).
+        let pad = max_nsz.saturating_sub(1 + p[2]);
+        let row_len = pad + p[2] + max_nsz.div_ceil(LANES) * LANES;
+        let table_len = nr[0] * nr[1] * row_len;
+        let mut tables = vec![0i16; MAX_RUN * table_len];
+        for (r, row) in tables[..table_len].chunks_exact_mut(row_len).enumerate() {
+            let (vx, vy) = (r / nr[1], r % nr[1]);
+            for vz in 0..nr[2] {
+                let occupied = kernel.get(nr[0] - 1 - vx, nr[1] - 1 - vy, nr[2] - 1 - vz);
+                row[pad + vz] = if occupied { 5 } else { -1 };
+            }
+        }
+        // R_L[q] = R_{L−1}[q] + W_pad[q − (L − 1)].
+        for run in 2..=MAX_RUN {
+            let (done, rest) = tables.split_at_mut((run - 1) * table_len);
+            let (single, previous) = (&done[..table_len], &done[(run - 2) * table_len..]);
+            let shifted = (0..row_len).map(|q| q.checked_sub(run - 1));
+            let rows = rest[..table_len].chunks_exact_mut(row_len);
+            for (r, row) in rows.enumerate() {
+                for (q, from) in shifted.clone().enumerate() {
+                    let w = from.map_or(0, |f| single[r * row_len + f]);
+                    row[q] = previous[r * row_len + q] + w;
                 }
             }
         }
         Some(DirectKernel {
             nr,
             p,
-            rows,
+            tables,
             pad,
             row_len,
+            table_len,
             max_nsz,
         })
     }
 
-    /// Whether correlating `occupied` source cells directly on a grid of dims `ns` is expected
-    /// to take less time than the transforms of `geo` (nominal FLOPs, [`Geometry::flops`]).
-    pub fn cheaper_than(&self, geo: &Geometry, ns: [usize; 3], occupied: usize) -> bool {
-        self.additions(ns, occupied) < geo.flops(ns) * ADDITIONS_PER_FLOP
+    /// Whether correlating `runs` runs of source cells directly on a grid of dims `ns` is
+    /// expected to take less time than the transforms of `geo` (nominal FLOPs,
+    /// [`Geometry::flops`]).
+    pub fn cheaper_than(&self, geo: &Geometry, ns: [usize; 3], runs: usize) -> bool {
+        self.additions(ns, runs) < geo.flops(ns) * ADDITIONS_PER_FLOP
     }
 
     /// Score rows a direct correlation of the cells gathered in `scratch` adds to, each once
@@ -111,41 +145,44 @@ impl DirectKernel {
         scratch.columns.len() * self.nr[0] * self.nr[1]
     }
 
-    /// 16-offset additions of a direct correlation of `occupied` cells on a grid of dims `ns`
-    /// (an upper bound: rows that fall outside the offsets are skipped).
-    pub fn additions(&self, ns: [usize; 3], occupied: usize) -> f64 {
-        occupied as f64 * (self.nr[0] * self.nr[1]) as f64 * chunks(ns[2]) as f64
+    /// 16-offset additions of a direct correlation of `runs` runs of cells on a grid of dims
+    /// `ns` (an upper bound: rows that fall outside the offsets are skipped).
+    pub fn additions(&self, ns: [usize; 3], runs: usize) -> f64 {
+        runs as f64 * (self.nr[0] * self.nr[1]) as f64 * chunks(ns[2]) as f64
     }
 
-    /// Collect the occupied cells of the source grid `cells` (cell `(i, j, k)` at
-    /// `i·sx + j·sy + k`, dims `ns`) into `scratch`; returns how many there are.
+    /// Collect the runs of occupied cells along z of the source grid `cells` (cell
+    /// `(i, j, k)` at `i·sx + j·sy + k`, dims `ns`) into `scratch`; returns how many runs
+    /// there are ([`DirectScratch::cells`] counts the cells).
     pub fn gather<T: Real>(
         cells: &[T],
         [sx, sy]: [usize; 2],
         ns: [usize; 3],
         scratch: &mut DirectScratch,
     ) -> usize {
-        scratch.zs.clear();
+        scratch.runs.clear();
         scratch.columns.clear();
+        scratch.cells = 0;
         for i in 0..ns[0] {
             for j in 0..ns[1] {
-                let start = scratch.zs.len();
+                let start = scratch.runs.len();
                 let row = &cells[i * sx + j * sy..][..ns[2]];
-                // 32 cells at a time as a bit mask (a compare and a move-mask in vector
-                // code), then one push per occupied cell: most of a surface's cells are empty.
+                // 32 cells at a time as a bit mask, then one entry per run: most of a
+                // surface's cells are empty, and the occupied ones come in short runs.
                 for (c, chunk) in row.chunks(32).enumerate() {
                     let mut mask = chunk
                         .iter()
                         .enumerate()
                         .fold(0u32, |m, (k, v)| m | (u32::from(*v != T::zero()) << k));
+                    scratch.cells += mask.count_ones() as usize;
                     while mask != 0 {
-                        scratch
-                            .zs
-                            .push((c * 32) as u16 + mask.trailing_zeros() as u16);
-                        mask &= mask - 1;
+                        let z = mask.trailing_zeros();
+                        let len = (mask >> z).trailing_ones().min(MAX_RUN as u32);
+                        scratch.runs.push(((c * 32) as u16 + z as u16, len as u16));
+                        mask &= !(((1u64 << len) - 1) << z) as u32;
                     }
                 }
-                let end = scratch.zs.len();
+                let end = scratch.runs.len();
                 if end > start {
                     scratch
                         .columns
@@ -153,25 +190,27 @@ impl DirectKernel {
                 }
             }
         }
-        scratch.zs.len()
+        scratch.runs.len()
     }
 
     /// The best offset of the source gathered in `scratch` ([`Self::gather`]) on a grid of
     /// dims `ns`, or `None` when it has more than [`MAX_OCCUPIED`] cells or is too long
     /// along z for this kernel.
     pub fn best(&self, ns: [usize; 3], scratch: &mut DirectScratch) -> Option<BestOffset> {
-        if scratch.zs.len() > MAX_OCCUPIED || ns[2] > self.max_nsz {
+        if scratch.cells > MAX_OCCUPIED || ns[2] > self.max_nsz {
             return None;
         }
         let width = chunks(ns[2]) * LANES;
         scratch.acc.clear();
         scratch.acc.resize(ns[0] * ns[1] * width, 0);
-        // A source cell at z reads its kernel rows from `pad + P_z − z` on.
+        // A run of L cells from z reads its kernel rows from `pad + P_z − z` on, in table L − 1.
         let first = self.pad + self.p[2];
+        let table_len = self.table_len;
         scratch.starts.clear();
-        scratch
-            .starts
-            .extend(scratch.zs.iter().map(|&z| (first - z as usize) as u32));
+        scratch.starts.extend(
+            (scratch.runs.iter())
+                .map(|&(z, len)| ((len as usize - 1) * table_len + first - z as usize) as u32),
+        );
         let sums = Sums {
             kernel: self,
             ns,
@@ -229,17 +268,15 @@ impl Sums<'_> {
         let ay0 = j + vy0 - py;
         for vx in px.saturating_sub(i)..nrx.min(ns[0] + px - i) {
             let ax = i + vx - px;
-            // Rows vy0.. of the kernel and ay0.. of the scores, walked together.
-            let kernel_rows = k.rows[(vx * nry + vy0) * k.row_len..].chunks(k.row_len);
+            // Rows vy0.. of the kernel (each with the tables of runs after it) and ay0.. of
+            // the scores, walked together. Plain loops: an iterator adapter's `for_each` is not
+            // inlined into the AVX2 body.
             let out_rows = acc[(ax * ns[1] + ay0) * width..].chunks_exact_mut(width);
-            // Plain loops: an iterator adapter's `for_each` is not inlined into the AVX2 body.
-            let rows = kernel_rows.zip(out_rows).take(vy1 - vy0);
-            if width == LANES {
-                for (kernel_row, out) in rows {
+            for (vy, out) in (vy0..vy1).zip(out_rows) {
+                let kernel_row = &k.tables[(vx * nry + vy) * k.row_len..];
+                if width == LANES {
                     add_one_chunk(out, kernel_row, starts);
-                }
-            } else {
-                for (kernel_row, out) in rows {
+                } else {
                     add_shifted(out, kernel_row, starts);
                 }
             }
@@ -262,7 +299,8 @@ fn add_one_chunk(out: &mut [i16], row: &[i16], starts: &[u32]) {
     *out = sum;
 }
 
-/// `out[c·16 + l] += Σ_s row[s + c·16 + l]` over the starts `s`.
+/// `out[c·16 + l] += Σ_s row[s + c·16 + l]` over the starts `s` (`row` runs on to the end of
+/// the tables).
 #[inline(always)]
 fn add_shifted(out: &mut [i16], row: &[i16], starts: &[u32]) {
     for (c, lanes) in out.chunks_exact_mut(LANES).enumerate() {
@@ -384,8 +422,9 @@ mod tests {
             let direct = DirectKernel::new(&geo, &kernel).expect("small kernel");
             let (cells, strides) = dense(&src, ns[2] + 5);
             let mut scratch = DirectScratch::default();
-            let n = DirectKernel::gather(&cells, strides, ns, &mut scratch);
-            assert_eq!(n, src.occupied());
+            let runs = DirectKernel::gather(&cells, strides, ns, &mut scratch);
+            assert_eq!(scratch.cells(), src.occupied());
+            assert!(runs <= scratch.cells() && (runs == 0) == (scratch.cells() == 0));
             let got = direct.best(ns, &mut scratch).expect("few cells");
             assert_eq!(got, brute_best(&src, &kernel, geo.center), "round {round}");
         }
@@ -402,10 +441,9 @@ mod tests {
         let ns = [200, 40, 40];
         let cells = vec![1.0f32; 200 * 40 * 40];
         let mut scratch = DirectScratch::default();
-        assert_eq!(
-            DirectKernel::gather(&cells, [1600, 40], ns, &mut scratch),
-            320_000
-        );
+        // 8 000 columns of 40 cells, each 5 runs of 8.
+        let runs = DirectKernel::gather(&cells, [1600, 40], ns, &mut scratch);
+        assert_eq!((runs, scratch.cells()), (40_000, 320_000));
         assert!(direct.best(ns, &mut scratch).is_none());
         let long = Geometry::new([2, 2, 2], [4, 4, 200]);
         assert!(DirectKernel::new(&long, &kernel).is_none());
