@@ -60,6 +60,9 @@ pub struct DirectKernel {
 /// to 7 cells make 96 % of the columns of the bunny pair's coarse level.
 pub const MAX_RUN: usize = 8;
 
+/// Largest size of a kernel's tables (2 MiB; the coarse levels measured take 20–150 KiB).
+pub const MAX_TABLE_BYTES: usize = 2 << 20;
+
 /// A worker's buffers for direct correlation, reused across rotations.
 #[derive(Debug, Clone, Default)]
 pub struct DirectScratch {
@@ -85,7 +88,9 @@ impl DirectScratch {
 
 impl DirectKernel {
     /// The kernel of `kernel` for sources up to `geo.source_max`, or `None` when its grid is
-    /// too long along z for the padding to stay small (more than 8 chunks of 16).
+    /// too long along z for the padding to stay small (more than 8 chunks of 16) or its
+    /// tables would take more than [`MAX_TABLE_BYTES`]: a kernel that large is never cheaper
+    /// to correlate directly.
     pub fn new(geo: &Geometry, kernel: &Occupancy) -> Option<DirectKernel> {
         let nr = kernel.dims;
         let max_nsz = geo.source_max[2];
@@ -100,6 +105,9 @@ impl DirectKernel {
         let pad = max_nsz.saturating_sub(1 + p[2]);
         let row_len = pad + p[2] + max_nsz.div_ceil(LANES) * LANES;
         let table_len = nr[0] * nr[1] * row_len;
+        if MAX_RUN * table_len * std::mem::size_of::<i16>() > MAX_TABLE_BYTES {
+            return None;
+        }
         let mut tables = vec![0i16; MAX_RUN * table_len];
         for (r, row) in tables[..table_len].chunks_exact_mut(row_len).enumerate() {
             let (vx, vy) = (r / nr[1], r % nr[1]);
@@ -447,5 +455,11 @@ mod tests {
         assert!(direct.best(ns, &mut scratch).is_none());
         let long = Geometry::new([2, 2, 2], [4, 4, 200]);
         assert!(DirectKernel::new(&long, &kernel).is_none());
+        let wide = Occupancy {
+            dims: [100, 100, 8],
+            cells: vec![true; 80_000],
+        };
+        let big = Geometry::new(wide.dims, [100, 100, 16]);
+        assert!(DirectKernel::new(&big, &wide).is_none());
     }
 }
