@@ -160,43 +160,25 @@ impl DirectKernel {
     }
 
     /// Collect the runs of occupied cells along z of the source grid `cells` (cell
-    /// `(i, j, k)` at `i·sx + j·sy + k`, dims `ns`) into `scratch`; returns how many runs
-    /// there are ([`DirectScratch::cells`] counts the cells).
+    /// `(i, j, k)` at `i·sx + j·sy + k`, dims `ns`; each row's cells past `ns[2]` up to the
+    /// row stride `sy` are empty, as [`super::cpu::Workspace::begin`] leaves them) into
+    /// `scratch`; returns how many runs there are ([`DirectScratch::cells`] counts the cells).
     pub fn gather<T: Real>(
         cells: &[T],
-        [sx, sy]: [usize; 2],
+        strides: [usize; 2],
         ns: [usize; 3],
         scratch: &mut DirectScratch,
     ) -> usize {
         scratch.runs.clear();
         scratch.columns.clear();
         scratch.cells = 0;
-        for i in 0..ns[0] {
-            for j in 0..ns[1] {
-                let start = scratch.runs.len();
-                let row = &cells[i * sx + j * sy..][..ns[2]];
-                // 32 cells at a time as a bit mask, then one entry per run: most of a
-                // surface's cells are empty, and the occupied ones come in short runs.
-                for (c, chunk) in row.chunks(32).enumerate() {
-                    let mut mask = chunk
-                        .iter()
-                        .enumerate()
-                        .fold(0u32, |m, (k, v)| m | (u32::from(*v != T::zero()) << k));
-                    scratch.cells += mask.count_ones() as usize;
-                    while mask != 0 {
-                        let z = mask.trailing_zeros();
-                        let len = (mask >> z).trailing_ones().min(MAX_RUN as u32);
-                        scratch.runs.push(((c * 32) as u16 + z as u16, len as u16));
-                        mask &= !(((1u64 << len) - 1) << z) as u32;
-                    }
-                }
-                let end = scratch.runs.len();
-                if end > start {
-                    scratch
-                        .columns
-                        .push((i as u16, j as u16, start as u32, end as u32));
-                }
-            }
+        match crate::simd::level() {
+            #[cfg(target_arch = "x86_64")]
+            // SAFETY: `simd::level` returns Avx2 or wider only when the CPU has AVX2.
+            crate::simd::Level::Avx2 | crate::simd::Level::Avx512 => unsafe {
+                gather_avx2(cells, strides, ns, scratch)
+            },
+            _ => gather_body(cells, strides, ns, scratch),
         }
         scratch.runs.len()
     }
@@ -322,6 +304,63 @@ fn add_shifted(out: &mut [i16], row: &[i16], starts: &[u32]) {
             }
         }
         lanes.copy_from_slice(&sum);
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn gather_avx2<T: Real>(
+    cells: &[T],
+    strides: [usize; 2],
+    ns: [usize; 3],
+    scratch: &mut DirectScratch,
+) {
+    gather_body(cells, strides, ns, scratch)
+}
+
+/// [`DirectKernel::gather`]: each row 32 cells at a time as a bit mask (16 at once, a
+/// compare and a move-mask, where the row fits), then one entry per run: most of a surface's
+/// cells are empty, and the occupied ones come in short runs.
+#[inline(always)]
+fn gather_body<T: Real>(
+    cells: &[T],
+    [sx, sy]: [usize; 2],
+    ns: [usize; 3],
+    scratch: &mut DirectScratch,
+) {
+    let short = ns[2] <= LANES && sy >= LANES;
+    for i in 0..ns[0] {
+        for j in 0..ns[1] {
+            let start = scratch.runs.len();
+            let at = i * sx + j * sy;
+            if short {
+                let row: &[T; LANES] = cells[at..][..LANES].try_into().expect("16 cells");
+                let mask = (0..LANES).fold(0u32, |m, k| m | (u32::from(row[k] != T::zero()) << k));
+                push_runs(mask, 0, scratch);
+            } else {
+                for (c, chunk) in cells[at..][..ns[2]].chunks(32).enumerate() {
+                    let mask = (chunk.iter().enumerate())
+                        .fold(0u32, |m, (k, v)| m | (u32::from(*v != T::zero()) << k));
+                    push_runs(mask, c * 32, scratch);
+                }
+            }
+            let end = scratch.runs.len();
+            if end > start {
+                (scratch.columns).push((i as u16, j as u16, start as u32, end as u32));
+            }
+        }
+    }
+}
+
+/// The runs of the occupied cells `mask` (bit k: cell `z0 + k`), split at [`MAX_RUN`].
+#[inline(always)]
+fn push_runs(mut mask: u32, z0: usize, scratch: &mut DirectScratch) {
+    scratch.cells += mask.count_ones() as usize;
+    while mask != 0 {
+        let z = mask.trailing_zeros();
+        let len = (mask >> z).trailing_ones().min(MAX_RUN as u32);
+        scratch.runs.push((z0 as u16 + z as u16, len as u16));
+        mask &= !(((1u64 << len) - 1) << z) as u32;
     }
 }
 
