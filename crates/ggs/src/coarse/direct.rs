@@ -109,9 +109,10 @@ impl DirectKernel {
             return None;
         }
         let mut tables = vec![0i16; MAX_RUN * table_len];
+        // Kernel entries past the row are never read (a source much shorter than the kernel).
         for (r, row) in tables[..table_len].chunks_exact_mut(row_len).enumerate() {
             let (vx, vy) = (r / nr[1], r % nr[1]);
-            for vz in 0..nr[2] {
+            for vz in 0..nr[2].min(row_len - pad) {
                 let occupied = kernel.get(nr[0] - 1 - vx, nr[1] - 1 - vy, nr[2] - 1 - vz);
                 row[pad + vz] = if occupied { 5 } else { -1 };
             }
@@ -459,8 +460,9 @@ mod tests {
         let mut next = uniform(20261204);
         for round in 0..60 {
             let mut dim = |lo: usize, hi: usize| lo + (next() * (hi - lo + 1) as f64) as usize;
-            let nr = [dim(1, 9), dim(1, 9), dim(1, 20)];
-            let ns = [dim(1, 10), dim(1, 10), dim(1, 36)];
+            // Every fourth kernel much longer along z than its sources.
+            let nr = [dim(1, 9), dim(1, 9), dim(1, [20, 20, 20, 60][round % 4])];
+            let ns = [dim(1, 10), dim(1, 10), dim(1, [36, 36, 36, 6][round % 4])];
             // Sparse and dense fills; a few all-empty sources (every score 0 or less).
             let fill = [0.0, 0.05, 0.3, 0.9][round % 4];
             let kernel = random_grid(nr, 0.4, &mut next);
