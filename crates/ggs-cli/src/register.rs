@@ -479,7 +479,7 @@ fn print_timings(reg: &Registration, read_ms: f64, total_ms: f64) -> Result<()> 
         ("  forward FFT (z, y)", t.cpu_forward_ms),
         ("  FFT x, spectrum product, iFFT x", t.cpu_product_ms),
         ("  inverse FFT (y, z) + argmax", t.cpu_inverse_ms),
-        ("  direct correlation (coarse)", t.cpu_direct_ms),
+        ("  direct and sparse correlation", t.cpu_direct_ms),
     ] {
         outln!("{name:<32} {:>10} {v:>10.1}  {:>5.1} %", "", pct(v));
     }

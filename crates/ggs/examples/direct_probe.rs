@@ -1,15 +1,18 @@
-//! Times the two ways of scoring one rotation of a coarse level, the transforms
-//! (`CpuCorrelator::rounded_best` at the smallest plan that holds it) and direct correlation
-//! (`coarse::direct`), over every rotation of `hopf15-id`, and checks that both give the same
-//! best offset and score:
+//! Times the three ways of scoring one rotation of a level, the transforms
+//! (`CpuCorrelator::rounded_best` at the smallest plan that holds it), direct correlation
+//! (`coarse::direct`) and sparse correlation (`coarse::sparse`), over every rotation of
+//! `hopf15-id`, checks that all give the same best offset and score, and counts which one the
+//! cost model (`Workspace::direct_best`) would pick:
 //! `cargo run --release --example direct_probe -p ggs -- SOURCE TARGET VOXEL [FACTOR]`
 //! (`FACTOR`, default 4: the level's voxel is `FACTOR × VOXEL`, the source thinned to one
-//! point per cell of a quarter of it, as the default preset's coarse level does).
+//! point per cell of a quarter of it, as the default preset's coarse level does; 1: the
+//! voxel-size level, on representatives as thinned).
 use ggs::coarse::cpu::{CpuCorrelator, Workspace};
 use ggs::coarse::direct::{DirectKernel, DirectScratch};
 use ggs::coarse::extents::{geometry_for, rotated_boxes, rows, target_kernel};
 use ggs::coarse::rotated::RotatableCloud;
 use ggs::coarse::sized::SizedPlans;
+use ggs::coarse::sparse::{SparseKernel, SparseScratch};
 use ggs::rotations::RotationSet;
 use ggs::Cloud;
 use std::time::Instant;
@@ -39,6 +42,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let direct = DirectKernel::new(&geo, &kernel).ok_or("kernel too long for direct")?;
     let mut ws: Vec<Workspace<f32>> = plans.iter().map(|p| p.workspace()).collect();
     let mut scratch = DirectScratch::default();
+    let sparse = SparseKernel::new(&geo, &kernel).ok_or("grid too long")?;
+    let (mut sparse_scratch, mut t_sparse, mut pairs) = (SparseScratch::default(), 0.0, 0.0);
+    let mut volume = 0.0;
+    let mut picks = [0usize; 3];
     let (mut t_fft, mut t_direct, mut runs, mut chosen) = (0.0, 0.0, 0usize, 0usize);
     let mut cells_total = 0usize;
     let (mut adds, mut flops, mut bounded, mut rows_touched) = (0.0, 0.0, 0usize, 0.0);
@@ -53,6 +60,25 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         cells_total += scratch.cells();
         let by_direct = direct.best(ns, &mut scratch).ok_or("too many cells")?;
         t_direct += t.elapsed().as_secs_f64();
+        let t = Instant::now();
+        let (cells, strides, ns) = w.source_grid();
+        DirectKernel::gather(cells, strides, ns, &mut scratch);
+        let by_sparse = sparse.best(ns, &scratch, &mut sparse_scratch);
+        t_sparse += t.elapsed().as_secs_f64();
+        pairs += (n * sparse.runs()) as f64;
+        let fft = plans[p].geometry().flops(ns);
+        let (cd, cs) = (direct.cost(ns, n), sparse.cost(ns, n));
+        picks[if cd < fft && cd <= cs {
+            1
+        } else if cs < fft && cs < cd {
+            2
+        } else {
+            0
+        }] += 1;
+        volume += (ns[0] * ns[1] * ns[2]) as f64;
+        if by_sparse != Some(by_direct) {
+            return Err(format!("rotation {k}: sparse {by_sparse:?} against {by_direct:?}").into());
+        }
         runs += n;
         chosen += usize::from(direct.cheaper_than(plans[p].geometry(), ns, n));
         adds += direct.additions(ns, n);
@@ -92,6 +118,18 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "transforms {:.2} µs a rotation, direct {:.2} µs (same bests; {bounded} f32 intervals, each holding the exact score); the cost model picks direct for {chosen}",
         t_fft / n * 1e6,
         t_direct / n * 1e6
+    );
+    println!(
+        "sparse {:.2} µs a rotation ({:.0} run pairs, {} occupied kernel cells in {} runs, {:.0} offsets)",
+        t_sparse / n * 1e6,
+        pairs / n,
+        sparse.occupied(),
+        sparse.runs(),
+        volume / n
+    );
+    println!(
+        "the costs pick the transforms for {}, direct for {}, sparse for {} rotations",
+        picks[0], picks[1], picks[2]
     );
     Ok(())
 }

@@ -34,6 +34,7 @@ use super::geometry::X_BLOCK;
 pub use super::geometry::{fast_len, is_3_smooth, Geometry};
 use super::grid_view::GridView;
 pub use super::grid_view::Real;
+use super::sparse::{SparseKernel, SparseScratch};
 use super::transpose::transpose;
 use super::voxel::Occupancy;
 use super::zaxis::ZAxis;
@@ -108,13 +109,33 @@ pub struct Workspace<T: Real = f64> {
     pub t_product: Duration,
     /// Time spent in the inverse transforms (y, z) and the argmax.
     pub t_inverse: Duration,
-    /// Buffers of the direct correlation ([`Workspace::direct_best`]), its time, and the
-    /// nominal FLOPs of the transforms it replaced (rounded per rotation).
+    /// Buffers of the direct and sparse correlations ([`Workspace::direct_best`]), their
+    /// time, and the nominal FLOPs of the transforms they replaced (rounded per rotation).
     direct: DirectScratch,
+    sparse: SparseScratch,
     pub t_direct: Duration,
     pub direct_flops: u64,
     /// Largest |v − round(v)| seen: how far the FFT output was from the exact integers.
     pub max_rounding_error: f64,
+}
+
+/// The exact correlators a plan may use instead of its transforms, rotation by rotation:
+/// direct correlation with dense kernel rows ([`super::direct`], small grids) and sparse
+/// correlation over pairs of occupied cells ([`super::sparse`], sparse grids).
+#[derive(Debug, Clone)]
+pub struct ExactKernels {
+    pub dense: Option<DirectKernel>,
+    pub sparse: Option<SparseKernel>,
+}
+
+impl ExactKernels {
+    /// Both, where the geometry allows them.
+    pub fn new(geo: &Geometry, kernel: &Occupancy) -> Self {
+        ExactKernels {
+            dense: DirectKernel::new(geo, kernel),
+            sparse: SparseKernel::new(geo, kernel),
+        }
+    }
 }
 
 impl<T: Real> Workspace<T> {
@@ -156,20 +177,28 @@ impl<T: Real> Workspace<T> {
         }
     }
 
-    /// The exact best offset of the current source grid by direct correlation with `kernel`
-    /// ([`super::direct`]), or `None` when the transforms of `geo` are expected to be faster
-    /// (or the grid is too large for 16-bit sums).
-    pub fn direct_best(&mut self, kernel: &DirectKernel, geo: &Geometry) -> Option<BestOffset> {
+    /// The exact best offset of the current source grid by direct or sparse correlation
+    /// ([`ExactKernels`]), whichever is expected to take the least time, or `None` when the
+    /// transforms of `geo` are (or the chosen one declines a grid whose scores might overflow
+    /// 16 bits).
+    pub fn direct_best(&mut self, kernels: &ExactKernels, geo: &Geometry) -> Option<BestOffset> {
         let t = Instant::now();
         let (cells, strides, ns) = (&self.real, [self.ay * self.lz, self.lz], self.ns);
         let runs = DirectKernel::gather(cells, strides, ns, &mut self.direct);
-        let best = if kernel.cheaper_than(geo, ns, runs) {
-            kernel.best(ns, &mut self.direct)
-        } else {
-            None
+        let fft = geo.flops(ns);
+        let dense = (kernels.dense.as_ref()).map(|d| (d.cost(ns, runs), d));
+        let sparse = (kernels.sparse.as_ref()).map(|s| (s.cost(ns, runs), s));
+        let best = match (dense, sparse) {
+            (Some((cd, d)), sparse) if cd < fft && sparse.is_none_or(|(cs, _)| cd <= cs) => {
+                d.best(ns, &mut self.direct)
+            }
+            (_, Some((cs, s))) if cs < fft && dense.is_none_or(|(cd, _)| cs < cd) => {
+                s.best(ns, &self.direct, &mut self.sparse)
+            }
+            _ => None,
         };
         if best.is_some() {
-            self.direct_flops += geo.flops(ns).round() as u64;
+            self.direct_flops += fft.round() as u64;
         }
         self.t_direct += t.elapsed();
         best

@@ -84,6 +84,16 @@ impl DirectScratch {
     pub fn cells(&self) -> usize {
         self.cells
     }
+
+    /// The runs gathered, `(first z, length)`, column by column.
+    pub(super) fn runs(&self) -> &[(u16, u16)] {
+        &self.runs
+    }
+
+    /// The columns gathered, `(i, j, start, end)` into [`Self::runs`], in x-major order.
+    pub(super) fn columns(&self) -> &[(u16, u16, u32, u32)] {
+        &self.columns
+    }
 }
 
 impl DirectKernel {
@@ -145,7 +155,13 @@ impl DirectKernel {
     /// expected to take less time than the transforms of `geo` (nominal FLOPs,
     /// [`Geometry::flops`]).
     pub fn cheaper_than(&self, geo: &Geometry, ns: [usize; 3], runs: usize) -> bool {
-        self.additions(ns, runs) < geo.flops(ns) * ADDITIONS_PER_FLOP
+        self.cost(ns, runs) < geo.flops(ns)
+    }
+
+    /// The expected time of a direct correlation of `runs` runs of source cells on a grid of
+    /// dims `ns`, in nominal FLOPs of the transforms ([`Geometry::flops`]) that take as long.
+    pub fn cost(&self, ns: [usize; 3], runs: usize) -> f64 {
+        self.additions(ns, runs) / ADDITIONS_PER_FLOP
     }
 
     /// Score rows a direct correlation of the cells gathered in `scratch` adds to, each once
@@ -372,7 +388,7 @@ fn chunks(nsz: usize) -> usize {
 
 /// The highest score of `acc` over the offsets `[0, NS)` and its first offset in x-major C
 /// order.
-fn first_best(acc: &[i16], ns: [usize; 3], width: usize) -> BestOffset {
+pub(super) fn first_best(acc: &[i16], ns: [usize; 3], width: usize) -> BestOffset {
     let mut best = i16::MIN;
     let mut offset = [0; 3];
     for ax in 0..ns[0] {

@@ -10,8 +10,10 @@
 //!    [`Geometry`](cpu::Geometry);
 //! 3. [`voxel`]: the target's occupancy (the kernel) and the voxel arithmetic both sides share;
 //! 4. [`correlator`]: the [`Correlator`] trait a backend implements, with the CPU backend
-//!    [`cpu`] (FFT plans, kernel spectrum, per-thread workspaces, f32 and f64) and [`direct`]
-//!    (exact direct correlation of small grids, where it is cheaper than the transforms);
+//!    [`cpu`] (FFT plans, kernel spectrum, per-thread workspaces, f32 and f64), [`direct`]
+//!    (exact direct correlation of small grids) and [`sparse`] (exact correlation over the
+//!    pairs of occupied cells of sparse grids), each used where it is cheaper than the
+//!    transforms;
 //! 5. [`passes`]: a scoring pass over a list of rotations on a backend;
 //! 6. [`levels`]: the coarse level of a coarse-to-fine search (rank at a coarser voxel, keep
 //!    the best and their neighbours);
@@ -52,6 +54,7 @@ pub mod rotated;
 pub mod selection;
 pub mod sized;
 pub mod source;
+pub mod sparse;
 mod transpose;
 pub mod voxel;
 pub mod zaxis;

@@ -11,8 +11,8 @@ use super::correlator::{
     as_intervals, ApproxBest, Backend, BestOffset, Candidates, Correlator, PassControl,
     RotatedSources, Scores, StageTimes,
 };
-use super::cpu::{CpuCorrelator, Real, Workspace};
-use super::direct::DirectKernel;
+use super::cpu::{CpuCorrelator, ExactKernels, Real, Workspace};
+
 use super::geometry::Geometry;
 use super::sized::SizedPlans;
 use super::voxel::Occupancy;
@@ -32,10 +32,11 @@ pub enum CpuPlan {
     /// Rotations are ranked by exact integers: direct correlation where it is cheaper
     /// ([`DirectKernel`]), else [`CpuCorrelator::rounded_best`], each at the smallest plan
     /// that holds it (the ranking does not depend on the plan).
-    Approximate(SizedPlans, Option<DirectKernel>),
+    Approximate(SizedPlans, ExactKernels),
     /// The kernel is kept for exact scores at a few candidate offsets and for the smaller
-    /// approximate plans ([`SizedPlans`]).
-    Mixed(CpuCorrelator<f64>, SizedPlans),
+    /// approximate plans ([`SizedPlans`]); rotations are scored exactly by direct or sparse
+    /// correlation where that is cheaper ([`ExactKernels`]).
+    Mixed(CpuCorrelator<f64>, SizedPlans, ExactKernels),
     Exact(CpuCorrelator<f64>),
 }
 
@@ -49,12 +50,13 @@ impl Backend for CpuBackend {
         Ok(Box::new(match scores {
             Scores::Approximate => CpuPlan::Approximate(
                 SizedPlans::new(CpuCorrelator::new(geo, kernel), kernel.clone()),
-                DirectKernel::new(&geo, kernel),
+                ExactKernels::new(&geo, kernel),
             ),
             Scores::Mixed => {
                 let exact = CpuCorrelator::<f64>::new(geo, kernel);
                 let approx = CpuCorrelator::<f32>::from_f64(&exact);
-                CpuPlan::Mixed(exact, SizedPlans::new(approx, kernel.clone()))
+                let kernels = ExactKernels::new(&geo, kernel);
+                CpuPlan::Mixed(exact, SizedPlans::new(approx, kernel.clone()), kernels)
             }
             Scores::Exact => CpuPlan::Exact(CpuCorrelator::new(geo, kernel)),
         }))
@@ -65,7 +67,7 @@ impl CpuPlan {
     /// `(|K|, n_k, geometry)`, the same in every correlator of the plan.
     fn kernel(&self) -> (i64, i64, &Geometry) {
         match self {
-            CpuPlan::Approximate(p, _) | CpuPlan::Mixed(_, p) => {
+            CpuPlan::Approximate(p, _) | CpuPlan::Mixed(_, p, _) => {
                 let c = p.full();
                 (c.kernel_cells, c.kernel_occupied, c.geometry())
             }
@@ -94,7 +96,7 @@ impl Correlator for CpuPlan {
         indices: &[usize],
     ) -> Result<(Vec<BestOffset>, StageTimes)> {
         match self {
-            CpuPlan::Mixed(c, _) | CpuPlan::Exact(c) => {
+            CpuPlan::Mixed(c, ..) | CpuPlan::Exact(c) => {
                 run_pass(ctl, src, c, indices, Buffers::Full, |c, ws, _| {
                     c.best_offset(ws)
                 })
@@ -115,7 +117,7 @@ impl Correlator for CpuPlan {
         indices: &[usize],
         candidates: &[Candidates],
     ) -> Result<(Vec<BestOffset>, StageTimes)> {
-        let CpuPlan::Mixed(_, sized) = self else {
+        let CpuPlan::Mixed(_, sized, _) = self else {
             return self.exact(ctl, src, indices);
         };
         let (approx, kernel) = (sized.full(), sized.kernel());
@@ -158,15 +160,16 @@ impl Correlator for CpuPlan {
         indices: &[usize],
     ) -> Result<(Vec<ApproxBest>, StageTimes)> {
         match self {
-            CpuPlan::Approximate(sized, direct) => sized_pass(ctl, src, sized, indices, |c, ws| {
-                direct
-                    .as_ref()
-                    .and_then(|d| ws.direct_best(d, c.geometry()))
-                    .map_or_else(|| c.rounded_best(ws), ApproxBest::from)
-            }),
-            CpuPlan::Mixed(_, sized) => {
-                sized_pass(ctl, src, sized, indices, |c, ws| c.approx_best(ws, true))
+            CpuPlan::Approximate(sized, kernels) => {
+                sized_pass(ctl, src, sized, indices, |c, ws| {
+                    (ws.direct_best(kernels, c.geometry()))
+                        .map_or_else(|| c.rounded_best(ws), ApproxBest::from)
+                })
             }
+            CpuPlan::Mixed(_, sized, kernels) => sized_pass(ctl, src, sized, indices, |c, ws| {
+                (ws.direct_best(kernels, c.geometry()))
+                    .map_or_else(|| c.approx_best(ws, true), ApproxBest::from)
+            }),
             CpuPlan::Exact(_) => Ok(as_intervals(self.exact(ctl, src, indices)?)),
         }
     }

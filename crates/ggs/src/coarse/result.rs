@@ -39,8 +39,8 @@ pub struct Timings {
     pub cpu_product_ms: f64,
     /// CPU time: inverse FFTs along y and z and the argmax.
     pub cpu_inverse_ms: f64,
-    /// CPU time: direct correlation of the small grids where it is cheaper than the
-    /// transforms (`coarse::direct`; the coarse level).
+    /// CPU time: direct correlation of small grids and sparse correlation of sparse ones,
+    /// where either is cheaper than the transforms (`coarse::direct`, `coarse::sparse`).
     pub cpu_direct_ms: f64,
     /// Coarse level of a coarse-to-fine search: thinning, its kernel and extents, scoring
     /// every rotation, ranking (wall; not included in the other fields).
