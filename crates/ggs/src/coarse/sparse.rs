@@ -199,7 +199,6 @@ impl SparseKernel {
         s.boxes.clear();
         s.boxes.resize((ns[0] + 1) * rows1 * n2, 0);
         s.profile.resize(n2, 0);
-        s.running.resize(n2 + 1, 0);
         // Offsets reached from source coordinate x: x − P ≤ a ≤ x − P + NR − 1, within NS.
         let reach = |x: usize, d: usize| {
             let lo = x.saturating_sub(p[d]);
@@ -241,24 +240,26 @@ impl SparseKernel {
     }
 
     /// One column's `n_in` along z: `profile[a₂] = #{x₂ occupied : a₂ + P₂ − NR₂ + 1 ≤ x₂ ≤
-    /// a₂ + P₂}`, from the running count of its cells.
+    /// a₂ + P₂}`, the difference of two slices of the column's running count shifted by
+    /// `NR₂` (`running[u]`: its cells below `u − NR₂`; zero below, the total above).
     fn column_profile(&self, ns: [usize; 3], runs: &[(u16, u16)], s: &mut SparseScratch) {
         let n2 = ns[2];
         let (nr2, p2) = (self.nr[2], self.p[2]);
-        // running[q]: cells below q (a sum carried in a register, not through memory).
-        s.running.fill(0);
-        for &(z, len) in runs {
-            s.running[z as usize + 1..][..len as usize].fill(1);
+        let len = n2 + nr2 + p2 + 1;
+        s.running.clear();
+        s.running.resize(len, 0);
+        for &(z, run) in runs {
+            s.running[nr2 + z as usize + 1..][..run as usize].fill(1);
         }
+        // A sum carried in a register, not through memory.
         let mut below = 0i16;
-        for r in &mut s.running[1..=n2] {
+        for r in &mut s.running[nr2 + 1..] {
             below += *r;
             *r = below;
         }
-        for (a2, out) in s.profile.iter_mut().enumerate() {
-            let hi = (a2 + p2 + 1).min(n2);
-            let lo = (a2 + p2 + 1).saturating_sub(nr2).min(hi);
-            *out = s.running[hi] - s.running[lo];
+        let (hi, lo) = (&s.running[p2 + 1 + nr2..][..n2], &s.running[p2 + 1..][..n2]);
+        for ((out, &h), &l) in s.profile.iter_mut().zip(hi).zip(lo) {
+            *out = h - l;
         }
     }
 
