@@ -30,20 +30,20 @@ pub const MAX_PAIRED: usize = 5461;
 
 /// Costs of a sparse correlation in nominal FLOPs of the transforms that take as long
 /// ([`SparseKernel::cost`]), fitted on the development machine (AMD EPYC, AVX2;
-/// `examples/direct_probe.rs`, every rotation of `hopf15-id`) where the transforms took 34 ps
-/// a FLOP: 75 µs a rotation for 26 713 run pairs and 15 912 offsets (the generated human
-/// pair at its voxel size; the transforms 205 µs), 533 µs for 353 160 and 24 828 (the bunny
-/// pair; the transforms 319 µs), 4.2 µs for 404 and 279 (the human pair's coarse level; direct
-/// correlation 2.3 µs). Only the time depends on them, never the scores.
-const FLOPS_PER_RUN_PAIR: f64 = 40.0;
+/// `examples/direct_probe.rs`, every rotation of `hopf15-id`) where the transforms took about
+/// 34 ps a FLOP: 68 µs a rotation for 26 713 run pairs and 15 912 offsets (the generated
+/// human pair at its voxel size; the transforms 192 µs), 412 µs for 353 160 and 24 828 (the
+/// bunny pair; the transforms 284 µs), 131 µs for 85 014 and 14 007 (PCL's 400-point bunny
+/// views at 6 mm; the transforms 167 µs), 7.3 µs for 2 282 and 443 (the bunny pair's coarse
+/// level; direct correlation 4.1 µs). Only the time depends on them, never the scores.
+const FLOPS_PER_RUN_PAIR: f64 = 32.0;
 /// See [`FLOPS_PER_RUN_PAIR`].
-const FLOPS_PER_OFFSET: f64 = 74.0;
+const FLOPS_PER_OFFSET: f64 = 70.0;
 /// See [`FLOPS_PER_RUN_PAIR`].
-const FLOPS_PER_ROTATION: f64 = 90_000.0;
+const FLOPS_PER_ROTATION: f64 = 88_000.0;
 /// The fitted cost is raised by this factor, so that sparse correlation is chosen only where
-/// it is clearly cheaper: near the break-even the fit is off by 10 % or more (PCL's 400-point
-/// bunny views at 6 mm: 170 µs against 183 µs for the transforms, fitted 152 µs), and in the
-/// pipeline, two threads at once, it did not gain there (search 230 → 255 ms).
+/// it is clearly cheaper: the fit is off by 10 % or more near the break-even, and the
+/// transforms' time per FLOP varies by as much from grid to grid.
 const COST_MARGIN: f64 = 1.25;
 
 /// The occupied cells of a kernel, reversed, laid out for sparse correlation.
@@ -70,7 +70,8 @@ pub struct SparseScratch {
     x0_start: Vec<u32>,
     kernel_places: Vec<u32>,
     /// Pair counts of one slab `a₀`, `[a₁ + P₁][a₂ + P₂]` over `E₁ × E₂` (and [`LANES`]
-    /// more, which a run pair at the end adds zeros to).
+    /// more, which a run pair at the end adds zeros to), in two copies that consecutive source
+    /// runs alternate between ([`add_pairs`]); `n₁₁` is their sum.
     pairs: Vec<i16>,
     /// The box counts' difference array, then the counts, `(NS₀ + 1) × (NS₁ + 1)` rows of
     /// `NS₂`; one column's profile along z and its running sum.
@@ -293,7 +294,7 @@ impl SparseKernel {
         s.scores.resize(ns[0] * ns[1] * n2, 0);
         for a0 in 0..ns[0] {
             s.pairs.clear();
-            s.pairs.resize(e1 * e2 + LANES, 0);
+            s.pairs.resize(2 * (e1 * e2 + LANES), 0);
             // v₀ = a₀ + P₀ − x₀ for x₀ ∈ [0, NS₀), within [0, NR₀).
             let v_lo = (a0 + self.p[0]).saturating_sub(ns[0] - 1);
             let v_hi = (a0 + self.p[0] + 1).min(self.nr[0]);
@@ -304,12 +305,14 @@ impl SparseKernel {
                     &s.kernel_places[self.v0_start[v0] as usize..self.v0_start[v0 + 1] as usize];
                 add_pairs::<AVX2>(&mut s.pairs, sources, kernel);
             }
+            let (even, odd) = s.pairs.split_at(e1 * e2 + LANES);
             for a1 in 0..ns[1] {
-                let pairs = &s.pairs[(a1 + self.p[1]) * e2 + self.p[2]..][..n2];
+                let at = (a1 + self.p[1]) * e2 + self.p[2];
+                let (even, odd) = (&even[at..][..n2], &odd[at..][..n2]);
                 let boxes = &s.boxes[(a0 * rows1 + a1) * n2..][..n2];
                 let out = &mut s.scores[(a0 * ns[1] + a1) * n2..][..n2];
-                for ((o, &n11), &b) in out.iter_mut().zip(pairs).zip(boxes) {
-                    *o = n11.wrapping_mul(6).wrapping_sub(b);
+                for (((o, &e), &d), &b) in out.iter_mut().zip(even).zip(odd).zip(boxes) {
+                    *o = e.wrapping_add(d).wrapping_mul(6).wrapping_sub(b);
                 }
             }
         }
@@ -347,14 +350,18 @@ const fn trapezoids() -> [[i16; LANES]; 64] {
 
 /// `pairs[q + k + d] += TRAPEZOIDS[…][d]` for every source run and kernel run (places and
 /// lengths packed as in [`SparseScratch`]); `AVX2` (one 256-bit load, add and store a run
-/// pair) only where the CPU has it.
+/// pair) only where the CPU has it. Consecutive source runs add to the two halves of `pairs`
+/// in turn: two runs of one column add to overlapping lanes, and a load that overlaps the
+/// store just before it only in part waits for that store (store forwarding fails), which
+/// made the bunny's voxel-size level 506 → 412 µs a rotation, its coarse level 15 → 7 µs.
 #[inline(always)]
 fn add_pairs<const AVX2: bool>(pairs: &mut [i16], sources: &[u32], kernel: &[u32]) {
+    let half = pairs.len() / 2;
     for &k in kernel {
         let (place, lt) = ((k >> 3) as usize, (k & 7) as usize);
-        for &q in sources {
+        for (i, &q) in sources.iter().enumerate() {
             let t = &TRAPEZOIDS[((q & 7) as usize) << 3 | lt];
-            let at = (q >> 3) as usize + place;
+            let at = (q >> 3) as usize + place + (i & 1) * half;
             let out: &mut [i16; LANES] = (&mut pairs[at..at + LANES]).try_into().expect("lanes");
             #[cfg(target_arch = "x86_64")]
             if AVX2 {
