@@ -409,12 +409,12 @@ pub(super) fn first_best(acc: &[i16], ns: [usize; 3], width: usize) -> BestOffse
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::test_rng::uniform;
 
     /// The first best offset of `m(a)` computed straight from its definition.
-    fn brute_best(src: &Occupancy, kernel: &Occupancy) -> BestOffset {
+    pub(crate) fn brute_best(src: &Occupancy, kernel: &Occupancy) -> BestOffset {
         let scores = crate::coarse::cpu::brute_force_scores(src, kernel);
         let best = scores.iter().copied().max().expect("at least one offset");
         let at = scores.iter().position(|&m| m == best).expect("the maximum");
@@ -425,12 +425,18 @@ mod tests {
         }
     }
 
-    fn random_grid(dims: [usize; 3], fill: f64, next: &mut impl FnMut() -> f64) -> Occupancy {
+    /// A grid of dims `dims` whose cells are occupied with probability `fill`.
+    pub(crate) fn random_grid(
+        dims: [usize; 3],
+        fill: f64,
+        next: &mut impl FnMut() -> f64,
+    ) -> Occupancy {
         let cells = (0..dims.iter().product()).map(|_| next() < fill).collect();
         Occupancy { dims, cells }
     }
 
-    fn dense(src: &Occupancy, lz: usize) -> (Vec<f32>, [usize; 2]) {
+    /// `src` as a grid buffer with rows of `lz ≥ NS₂` cells, as a workspace holds it.
+    pub(crate) fn dense(src: &Occupancy, lz: usize) -> (Vec<f32>, [usize; 2]) {
         let [nx, ny, nz] = src.dims;
         let mut cells = vec![0.0f32; nx * ny * lz];
         for i in 0..nx {

@@ -29,9 +29,9 @@ pub struct CpuBackend;
 // One plan per search level, boxed behind `dyn Correlator`: the size difference costs nothing.
 #[allow(clippy::large_enum_variant)]
 pub enum CpuPlan {
-    /// Rotations are ranked by exact integers: direct correlation where it is cheaper
-    /// ([`DirectKernel`]), else [`CpuCorrelator::rounded_best`], each at the smallest plan
-    /// that holds it (the ranking does not depend on the plan).
+    /// Rotations are ranked by exact integers: direct or sparse correlation where either is
+    /// cheaper ([`ExactKernels`]), else [`CpuCorrelator::rounded_best`], each at the smallest
+    /// plan that holds it (the ranking does not depend on the plan).
     Approximate(SizedPlans, ExactKernels),
     /// The kernel is kept for exact scores at a few candidate offsets and for the smaller
     /// approximate plans ([`SizedPlans`]); rotations are scored exactly by direct or sparse

@@ -36,15 +36,15 @@ pub const MAX_PAIRED: usize = 5461;
 /// bunny pair; the transforms 284 µs), 131 µs for 85 014 and 14 007 (PCL's 400-point bunny
 /// views at 6 mm; the transforms 167 µs), 7.3 µs for 2 282 and 443 (the bunny pair's coarse
 /// level; direct correlation 4.1 µs). Only the time depends on them, never the scores.
-const FLOPS_PER_RUN_PAIR: f64 = 32.0;
+pub const FLOPS_PER_RUN_PAIR: f64 = 32.0;
 /// See [`FLOPS_PER_RUN_PAIR`].
-const FLOPS_PER_OFFSET: f64 = 70.0;
+pub const FLOPS_PER_OFFSET: f64 = 70.0;
 /// See [`FLOPS_PER_RUN_PAIR`].
-const FLOPS_PER_ROTATION: f64 = 88_000.0;
+pub const FLOPS_PER_ROTATION: f64 = 88_000.0;
 /// The fitted cost is raised by this factor, so that sparse correlation is chosen only where
 /// it is clearly cheaper: the fit is off by 10 % or more near the break-even, and the
 /// transforms' time per FLOP varies by as much from grid to grid.
-const COST_MARGIN: f64 = 1.25;
+pub const COST_MARGIN: f64 = 1.25;
 
 /// The occupied cells of a kernel, reversed, laid out for sparse correlation.
 #[derive(Debug, Clone)]
@@ -403,42 +403,10 @@ fn add_row(row: &mut [i16], before: &[i16]) {
 
 #[cfg(test)]
 mod tests {
+    use super::super::direct::tests::{brute_best, dense, random_grid};
     use super::super::direct::DirectKernel;
     use super::*;
     use crate::test_rng::uniform;
-
-    fn random_grid(dims: [usize; 3], fill: f64, next: &mut impl FnMut() -> f64) -> Occupancy {
-        let cells = (0..dims.iter().product()).map(|_| next() < fill).collect();
-        Occupancy { dims, cells }
-    }
-
-    /// `src` as a grid buffer with rows of `lz ≥ NS₂` cells, as a workspace holds it.
-    fn dense(src: &Occupancy, lz: usize) -> (Vec<f32>, [usize; 2]) {
-        let [nx, ny, nz] = src.dims;
-        let mut cells = vec![0.0f32; nx * ny * lz];
-        for i in 0..nx {
-            for j in 0..ny {
-                for k in 0..nz {
-                    if src.get(i, j, k) {
-                        cells[(i * ny + j) * lz + k] = 1.0;
-                    }
-                }
-            }
-        }
-        (cells, [ny * lz, lz])
-    }
-
-    /// The first best offset of `m(a)` computed straight from its definition.
-    fn brute_best(src: &Occupancy, kernel: &Occupancy) -> BestOffset {
-        let scores = crate::coarse::cpu::brute_force_scores(src, kernel);
-        let best = scores.iter().copied().max().expect("at least one offset");
-        let at = scores.iter().position(|&m| m == best).expect("the maximum");
-        let [_, ny, nz] = src.dims;
-        BestOffset {
-            match_score: best,
-            offset: [at / (ny * nz), at / nz % ny, at % nz],
-        }
-    }
 
     #[test]
     fn sparse_scores_equal_the_definition_ties_included() {
