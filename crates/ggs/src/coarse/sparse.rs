@@ -59,7 +59,10 @@ pub struct SparseKernel {
     occupied: usize,
 }
 
-/// A worker's buffers for sparse correlation, reused across rotations.
+/// A worker's buffers for sparse correlation, reused across rotations: about 4 bytes an
+/// offset and 4 a cell of a slab of pair counts, less than what the memory model
+/// (`memory_model.rs`) counts for each worker beyond the f32 workspace it holds beside them
+/// (the f64 workspace it holds instead during re-scoring).
 #[derive(Debug, Clone, Default)]
 pub struct SparseScratch {
     /// Each run of occupied source cells as its place in a slab of pair counts (`x₁·E₂ + x₂`
@@ -153,7 +156,9 @@ impl SparseKernel {
         if n_s.min(self.occupied) > MAX_PAIRED || n_s > i16::MAX as usize {
             return None;
         }
-        if n_s == 0 || ns.contains(&0) {
+        // Places are packed with 3 bits of run length into u32.
+        let [e1, e2] = self.extents(ns);
+        if n_s == 0 || ns.contains(&0) || (e1 * e2 + LANES) as u64 * 8 > u64::from(u32::MAX) {
             return None;
         }
         self.place_sources(ns, direct, scratch);
