@@ -29,7 +29,7 @@ use super::voxel::Occupancy;
 pub const MAX_PAIRED: usize = 5461;
 
 /// Costs of a sparse correlation in nominal FLOPs of the transforms that take as long
-/// ([`SparseKernel::cost`]), fitted on the development machine (AMD EPYC, AVX2;
+/// ([`SparseKernel::cost`]), fitted on the development machine (AMD EPYC, 2 cores, the AVX2 path;
 /// `examples/direct_probe.rs`, every rotation of `hopf15-id`) where the transforms took about
 /// 34 ps a FLOP: 68 µs a rotation for 26 713 run pairs and 15 912 offsets (the generated
 /// human pair at its voxel size; the transforms 192 µs), 412 µs for 353 160 and 24 828 (the
