@@ -438,6 +438,30 @@ mod tests {
         }
     }
 
+    /// The portable body of the pair counts gives the same scores as the one the CPU runs.
+    #[test]
+    fn the_portable_body_gives_the_same_scores() {
+        let mut next = uniform(20261206);
+        for round in 0..20 {
+            let mut dim = |lo: usize, hi: usize| lo + (next() * (hi - lo + 1) as f64) as usize;
+            let nr = [dim(1, 12), dim(1, 12), dim(1, 30)];
+            let ns = [dim(1, 12), dim(1, 12), dim(1, 40)];
+            let kernel = random_grid(nr, 0.3, &mut next);
+            let src = random_grid(ns, [0.05, 0.3][round % 2], &mut next);
+            let sparse = SparseKernel::new(&Geometry::new(nr, ns), &kernel).expect("small grids");
+            let (cells, strides) = dense(&src, ns[2] + 3);
+            let mut direct = DirectScratch::default();
+            DirectKernel::gather(&cells, strides, ns, &mut direct);
+            let mut s = SparseScratch::default();
+            sparse.place_sources(ns, &direct, &mut s);
+            sparse.count_boxes(ns, &direct, &mut s);
+            sparse.count_pairs_and_combine(ns, &mut s);
+            let dispatched = s.scores.clone();
+            sparse.pairs_and_combine::<false>(ns, &mut s);
+            assert_eq!(s.scores, dispatched, "round {round}");
+        }
+    }
+
     #[test]
     fn scores_that_might_overflow_16_bits_are_declined() {
         let kernel = Occupancy {
