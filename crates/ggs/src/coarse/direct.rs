@@ -388,7 +388,7 @@ fn chunks(nsz: usize) -> usize {
 
 /// The highest score of `acc` over the offsets `[0, NS)` and its first offset in x-major C
 /// order.
-pub(super) fn first_best(acc: &[i16], ns: [usize; 3], width: usize) -> BestOffset {
+fn first_best(acc: &[i16], ns: [usize; 3], width: usize) -> BestOffset {
     let mut best = i16::MIN;
     let mut offset = [0; 3];
     for ax in 0..ns[0] {

@@ -21,7 +21,7 @@
 //! x-major C order among the highest, as for every other correlator.
 
 use super::correlator::BestOffset;
-use super::direct::{first_best, DirectScratch, MAX_RUN};
+use super::direct::{DirectScratch, MAX_RUN};
 use super::geometry::Geometry;
 use super::voxel::Occupancy;
 
@@ -81,8 +81,8 @@ pub struct SparseScratch {
     boxes: Vec<i16>,
     profile: Vec<i16>,
     running: Vec<i16>,
-    /// The scores over `NS`, rows of `NS₂`.
-    scores: Vec<i16>,
+    /// One row of scores (`NS₂` offsets).
+    row: Vec<i16>,
 }
 
 impl SparseKernel {
@@ -163,8 +163,7 @@ impl SparseKernel {
         }
         self.place_sources(ns, direct, scratch);
         self.count_boxes(ns, direct, scratch);
-        self.count_pairs_and_combine(ns, scratch);
-        Some(first_best(&scratch.scores, ns, ns[2]))
+        Some(self.count_pairs_and_combine(ns, scratch))
     }
 
     /// `E₁, E₂`: the pair counts' extents along y and z.
@@ -257,23 +256,25 @@ impl SparseKernel {
         for &(z, run) in runs {
             s.running[nr2 + z as usize + 1..][..run as usize].fill(1);
         }
-        // A sum carried in a register, not through memory.
+        // A sum carried in a register, not through memory; past the column, the total.
         let mut below = 0i16;
-        for r in &mut s.running[nr2 + 1..] {
+        for r in &mut s.running[nr2 + 1..=nr2 + n2] {
             below += *r;
             *r = below;
         }
+        s.running[nr2 + n2 + 1..].fill(below);
         let (hi, lo) = (&s.running[p2 + 1 + nr2..][..n2], &s.running[p2 + 1..][..n2]);
         for ((out, &h), &l) in s.profile.iter_mut().zip(hi).zip(lo) {
             *out = h - l;
         }
     }
 
-    /// `m = 6·n₁₁ − n_in` over `NS` into `scores`, one slab `a₀` at a time: `n₁₁` adds one
+    /// The best of `m = 6·n₁₁ − n_in` over `NS` (the first in x-major order among the highest,
+    /// taken row by row as the rows are made), one slab `a₀` at a time: `n₁₁` adds one
     /// per pair of a kernel cell and a source cell with `x₀ + v₀ − P₀ = a₀`, into counts that
     /// extend past `NS` along y and z (`E₁ × E₂`, so no pair is tested, and small enough to
     /// stay in the first-level cache), a pair of runs at a time ([`TRAPEZOIDS`]).
-    fn count_pairs_and_combine(&self, ns: [usize; 3], s: &mut SparseScratch) {
+    fn count_pairs_and_combine(&self, ns: [usize; 3], s: &mut SparseScratch) -> BestOffset {
         match crate::simd::level() {
             #[cfg(target_arch = "x86_64")]
             // SAFETY: `simd::level` returns Avx2 or wider only when the CPU has AVX2.
@@ -286,17 +287,21 @@ impl SparseKernel {
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    fn pairs_and_combine_avx2(&self, ns: [usize; 3], s: &mut SparseScratch) {
+    fn pairs_and_combine_avx2(&self, ns: [usize; 3], s: &mut SparseScratch) -> BestOffset {
         self.pairs_and_combine::<true>(ns, s)
     }
 
     /// [`Self::count_pairs_and_combine`]; `AVX2` only where the CPU has it.
     #[inline(always)]
-    fn pairs_and_combine<const AVX2: bool>(&self, ns: [usize; 3], s: &mut SparseScratch) {
+    fn pairs_and_combine<const AVX2: bool>(
+        &self,
+        ns: [usize; 3],
+        s: &mut SparseScratch,
+    ) -> BestOffset {
         let [e1, e2] = self.extents(ns);
         let (rows1, n2) = (ns[1] + 1, ns[2]);
-        s.scores.clear();
-        s.scores.resize(ns[0] * ns[1] * n2, 0);
+        s.row.resize(n2, 0);
+        let (mut best, mut offset) = (i16::MIN, [0; 3]);
         for a0 in 0..ns[0] {
             s.pairs.clear();
             s.pairs.resize(2 * (e1 * e2 + LANES), 0);
@@ -315,11 +320,20 @@ impl SparseKernel {
                 let at = (a1 + self.p[1]) * e2 + self.p[2];
                 let (even, odd) = (&even[at..][..n2], &odd[at..][..n2]);
                 let boxes = &s.boxes[(a0 * rows1 + a1) * n2..][..n2];
-                let out = &mut s.scores[(a0 * ns[1] + a1) * n2..][..n2];
-                for (((o, &e), &d), &b) in out.iter_mut().zip(even).zip(odd).zip(boxes) {
+                for (((o, &e), &d), &b) in s.row.iter_mut().zip(even).zip(odd).zip(boxes) {
                     *o = e.wrapping_add(d).wrapping_mul(6).wrapping_sub(b);
                 }
+                let top = s.row.iter().copied().fold(i16::MIN, i16::max);
+                if top > best {
+                    best = top;
+                    let a2 = s.row.iter().position(|&v| v == top).unwrap_or(0);
+                    offset = [a0, a1, a2];
+                }
             }
+        }
+        BestOffset {
+            match_score: i64::from(best),
+            offset,
         }
     }
 }
@@ -438,9 +452,9 @@ mod tests {
         }
     }
 
-    /// The portable body of the pair counts gives the same scores as the one the CPU runs.
+    /// The portable body of the pair counts gives the same best as the one the CPU runs.
     #[test]
-    fn the_portable_body_gives_the_same_scores() {
+    fn the_portable_body_gives_the_same_best() {
         let mut next = uniform(20261206);
         for round in 0..20 {
             let mut dim = |lo: usize, hi: usize| lo + (next() * (hi - lo + 1) as f64) as usize;
@@ -455,10 +469,9 @@ mod tests {
             let mut s = SparseScratch::default();
             sparse.place_sources(ns, &direct, &mut s);
             sparse.count_boxes(ns, &direct, &mut s);
-            sparse.count_pairs_and_combine(ns, &mut s);
-            let dispatched = s.scores.clone();
-            sparse.pairs_and_combine::<false>(ns, &mut s);
-            assert_eq!(s.scores, dispatched, "round {round}");
+            let dispatched = sparse.count_pairs_and_combine(ns, &mut s);
+            let portable = sparse.pairs_and_combine::<false>(ns, &mut s);
+            assert_eq!(portable, dispatched, "round {round}");
         }
     }
 
