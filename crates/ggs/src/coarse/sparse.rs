@@ -59,7 +59,7 @@ pub struct SparseKernel {
     occupied: usize,
 }
 
-/// A worker's buffers for sparse correlation, reused across rotations: about 4 bytes an
+/// A worker's buffers for sparse correlation, reused across rotations: about 2 bytes an
 /// offset and 4 a cell of a slab of pair counts, less than what the memory model
 /// (`memory_model.rs`) counts for each worker beyond the f32 workspace it holds beside them
 /// (the f64 workspace it holds instead during re-scoring).
