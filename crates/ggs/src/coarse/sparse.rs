@@ -9,9 +9,11 @@
 //!
 //! `n₁₁(a) = #{(x, u) occupied in source and kernel : a = x + v − P}` with `v = NR − 1 − u`
 //! and `P = NR − 1 − C`, and `n_in(a) = #{x occupied : a + P − NR + 1 ≤ x ≤ a + P}` (per
-//! axis) the source cells that land on the kernel's box. The first costs one addition per
-//! pair of occupied cells (`n_s·n_k`, against `n_runs·NRx·NRy` 16-offset additions for the
-//! dense rows of [`super::direct`], which spend most of them on the kernel's empty cells);
+//! axis) the source cells that land on the kernel's box. The first costs one 16-lane addition
+//! per pair of runs of occupied cells along z (a run of `L_s` source cells and one of `L_t`
+//! kernel cells add a trapezoid of pair counts to `L_s + L_t − 1` consecutive offsets; at most
+//! `n_s·n_k` pairs, against `n_runs·NRx·NRy` 16-offset additions for the dense rows of
+//! [`super::direct`], which spend most of them on the kernel's empty cells);
 //! the second is the source's occupancy summed over a box, built from one profile along z
 //! per source column spread over a rectangle of offset rows by a two-dimensional difference
 //! array and two prefix sums.
@@ -145,7 +147,8 @@ impl SparseKernel {
     }
 
     /// The best offset of the source gathered in `direct` ([`super::direct::DirectKernel::gather`])
-    /// on a grid of dims `ns`, or `None` when its scores might not fit 16 bits.
+    /// on a grid of dims `ns`, or `None` (the transforms then score it) when its scores might
+    /// not fit 16 bits, its places 32 bits, or it has no occupied cell.
     pub fn best(
         &self,
         ns: [usize; 3],
