@@ -34,8 +34,8 @@ pub enum CpuPlan {
     /// plan that holds it (the ranking does not depend on the plan).
     Approximate(SizedPlans, ExactKernels),
     /// The kernel is kept for exact scores at a few candidate offsets and for the smaller
-    /// approximate plans ([`SizedPlans`]); rotations are scored exactly by direct or sparse
-    /// correlation where that is cheaper ([`ExactKernels`]).
+    /// approximate plans ([`SizedPlans`]); rotations are scored exactly by sparse
+    /// correlation where that is cheaper ([`ExactKernels::sparse_only`]).
     Mixed(CpuCorrelator<f64>, SizedPlans, ExactKernels),
     Exact(CpuCorrelator<f64>),
 }
@@ -55,7 +55,7 @@ impl Backend for CpuBackend {
             Scores::Mixed => {
                 let exact = CpuCorrelator::<f64>::new(geo, kernel);
                 let approx = CpuCorrelator::<f32>::from_f64(&exact);
-                let kernels = ExactKernels::new(&geo, kernel);
+                let kernels = ExactKernels::sparse_only(&geo, kernel);
                 CpuPlan::Mixed(exact, SizedPlans::new(approx, kernel.clone()), kernels)
             }
             Scores::Exact => CpuPlan::Exact(CpuCorrelator::new(geo, kernel)),
