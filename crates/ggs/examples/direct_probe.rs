@@ -46,7 +46,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let (mut sparse_scratch, mut t_sparse, mut pairs) = (SparseScratch::default(), 0.0, 0.0);
     let mut volume = 0.0;
     let mut picks = [0usize; 3];
-    let (mut t_fft, mut t_direct, mut runs, mut chosen) = (0.0, 0.0, 0usize, 0usize);
+    let (mut t_fft, mut t_direct, mut runs) = (0.0, 0.0, 0usize);
     let mut cells_total = 0usize;
     let (mut adds, mut flops, mut bounded, mut rows_touched) = (0.0, 0.0, 0usize, 0.0);
     for &k in &all {
@@ -80,7 +80,6 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             return Err(format!("rotation {k}: sparse {by_sparse:?} against {by_direct:?}").into());
         }
         runs += n;
-        chosen += usize::from(direct.cheaper_than(plans[p].geometry(), ns, n));
         adds += direct.additions(ns, n);
         rows_touched += direct.rows_touched(&scratch) as f64;
         flops += plans[p].geometry().flops(ns);
@@ -115,7 +114,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         flops / n
     );
     println!(
-        "transforms {:.2} µs a rotation, direct {:.2} µs (same bests; {bounded} f32 intervals, each holding the exact score); the cost model picks direct for {chosen}",
+        "transforms {:.2} µs a rotation, direct {:.2} µs (same bests; {bounded} f32 intervals, each holding the exact score)",
         t_fft / n * 1e6,
         t_direct / n * 1e6
     );

@@ -196,13 +196,11 @@ impl<T: Real> Workspace<T> {
         let (cells, strides, ns) = (&self.real, [self.ay * self.lz, self.lz], self.ns);
         let runs = DirectKernel::gather(cells, strides, ns, &mut self.direct);
         let fft = geo.flops(ns);
-        let dense = (kernels.dense.as_ref()).map(|d| (d.cost(ns, runs), d));
-        let sparse = (kernels.sparse.as_ref()).map(|s| (s.cost(ns, runs), s));
-        let best = match (dense, sparse) {
-            (Some((cd, d)), sparse) if cd < fft && sparse.is_none_or(|(cs, _)| cd <= cs) => {
-                d.best(ns, &mut self.direct)
-            }
-            (_, Some((cs, s))) if cs < fft && dense.is_none_or(|(cd, _)| cs < cd) => {
+        let dense = (kernels.dense.as_ref()).map_or(f64::INFINITY, |d| d.cost(ns, runs));
+        let sparse = (kernels.sparse.as_ref()).map_or(f64::INFINITY, |s| s.cost(ns, runs));
+        let best = match (&kernels.dense, &kernels.sparse) {
+            (Some(d), _) if dense < fft && dense <= sparse => d.best(ns, &mut self.direct),
+            (_, Some(s)) if sparse < fft && sparse < dense => {
                 s.best(ns, &self.direct, &mut self.sparse)
             }
             _ => None,

@@ -11,7 +11,7 @@
 //! `n` occupied cells of `NS³`) that is `n·NRx·NRy` additions of one reversed kernel row
 //! along z, 16 offsets at a time, against `O(L³ log L)` for the transforms, whose fixed cost
 //! per call dominates on the coarse level's grids (12³ to 16³). Which is cheaper is decided
-//! per rotation by [`DirectKernel::cheaper_than`].
+//! per rotation by [`DirectKernel::cost`] (`Workspace::direct_best`).
 //!
 //! Exactness: every partial sum lies in `[−n, 5·n]` (each source cell adds at most 5 and at
 //! least −1 to an offset), so with `n ≤ 6553` no 16-bit sum overflows and the scores are the
@@ -149,13 +149,6 @@ impl DirectKernel {
             table_len,
             max_nsz,
         })
-    }
-
-    /// Whether correlating `runs` runs of source cells directly on a grid of dims `ns` is
-    /// expected to take less time than the transforms of `geo` (nominal FLOPs,
-    /// [`Geometry::flops`]).
-    pub fn cheaper_than(&self, geo: &Geometry, ns: [usize; 3], runs: usize) -> bool {
-        self.cost(ns, runs) < geo.flops(ns)
     }
 
     /// The expected time of a direct correlation of `runs` runs of source cells on a grid of
