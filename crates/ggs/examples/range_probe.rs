@@ -41,9 +41,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let set = RotationSet::named("hopf15-id")?;
     let rs: Vec<[[f64; 3]; 3]> = set.matrices.iter().map(rows).collect();
     let mut boxes = vec![[(0.0, 0.0); 3]; rs.len()];
+    let mut scratch = Vec::new();
     let range_us = best_us(7, rs.len(), || {
         for (r, b) in rs.iter().zip(boxes.iter_mut()) {
-            *b = std::array::from_fn(|d| rc.range(&r[d]));
+            *b = std::array::from_fn(|d| rc.range_with(&r[d], &mut scratch));
         }
     });
     let mut mismatches = 0;

@@ -38,12 +38,12 @@ pub fn rotated_boxes(
     let computed: Vec<Result<RotatedBox>> = pool.install(|| {
         indices
             .par_iter()
-            .map(|&k| {
+            .map_init(Vec::new, |scratch, &k| {
                 let r = &rows[k];
                 let mut lo = [0.0; 3];
                 let mut hi = [0.0; 3];
                 for d in 0..3 {
-                    (lo[d], hi[d]) = cloud.range(&r[d]);
+                    (lo[d], hi[d]) = cloud.range_with(&r[d], scratch);
                 }
                 let ext = [hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]];
                 Ok(RotatedBox {
