@@ -83,8 +83,12 @@ pub struct CpuCorrelator<T: Real = f64> {
 /// [`CpuCorrelator::fit`] or [`CpuCorrelator::fit_grid`] sizes them).
 #[derive(Clone, Default)]
 pub struct Workspace<T: Real = f64> {
-    /// Source occupancy, layout [x < ax][y < ay][z < Lz].
+    /// Source occupancy, layout [x < ax][y < ay][z < Lz]. Zero outside the rows
+    /// `x < dirty[0]`, `y < dirty[1]`; when `runs_valid`, zero everywhere but at the runs
+    /// of the last gather in `direct` (a grid the direct or sparse path scored is intact).
     real: Vec<T>,
+    dirty: [usize; 2],
+    runs_valid: bool,
     ay: usize,
     /// `Lz`, the length of a row of `real`.
     lz: usize,
@@ -151,12 +155,30 @@ impl ExactKernels {
 impl<T: Real> Workspace<T> {
     /// Start a new source grid of dims `ns` (each ≤ the geometry's `source_max`): clears the
     /// region it will occupy.
+    ///
+    /// After a grid that the direct or sparse path scored, only its occupied runs are
+    /// zeroed (on the generated human pair's voxel-size level, about 500 cells instead of
+    /// 33 × 33 rows of 54); otherwise the rows of the new grid (values left beyond them by a
+    /// larger grid are never read, and are recorded in `dirty`).
     pub fn begin(&mut self, ns: [usize; 3]) {
-        let lz = self.lz;
-        for x in 0..ns[0] {
-            let start = x * self.ay * lz;
-            self.real[start..start + ns[1] * lz].fill(T::zero());
+        let (sx, sy) = (self.ay * self.lz, self.lz);
+        if self.runs_valid {
+            let runs = self.direct.runs();
+            for &(i, j, from, to) in self.direct.columns() {
+                let row = i as usize * sx + j as usize * sy;
+                for &(z, len) in &runs[from as usize..to as usize] {
+                    self.real[row + z as usize..][..len as usize].fill(T::zero());
+                }
+            }
+            self.dirty = [ns[0], ns[1]];
+        } else {
+            for x in 0..ns[0] {
+                let start = x * sx;
+                self.real[start..start + ns[1] * sy].fill(T::zero());
+            }
+            self.dirty = [self.dirty[0].max(ns[0]), self.dirty[1].max(ns[1])];
         }
+        self.runs_valid = false;
         self.ns = ns;
     }
 
@@ -207,9 +229,32 @@ impl<T: Real> Workspace<T> {
         };
         if best.is_some() {
             self.direct_flops += fft.round() as u64;
+            // The grid is intact and its occupied cells are the runs just gathered; once the
+            // values an earlier, larger grid left beyond it are cleared, they are the only
+            // non-zero cells. Zeroing them one by one pays where they are few against the
+            // rows' cache lines (16 cells each): a quarter of those or less (the voxel-size
+            // level of partial views, not the coarse level's small grids, where one clearing
+            // of the rows costs less).
+            self.clear_beyond_grid();
+            let lines = self.ns[0] * self.ns[1] * self.lz / 16;
+            self.runs_valid = 4 * self.direct.runs().len() <= lines;
         }
         self.t_direct += t.elapsed();
         best
+    }
+
+    /// Zero the rows outside the current grid that an earlier, larger one may have left
+    /// values in (`dirty`), so that only the current grid's rows may hold any.
+    fn clear_beyond_grid(&mut self) {
+        let (sx, sy) = (self.ay * self.lz, self.lz);
+        let ([nx, ny, _], [dx, dy]) = (self.ns, self.dirty);
+        for x in 0..dx {
+            let from = if x < nx { ny } else { 0 };
+            if from < dy {
+                self.real[x * sx + from * sy..x * sx + dy * sy].fill(T::zero());
+            }
+        }
+        self.dirty = [nx, ny];
     }
 
     /// The current source grid: its cells (cell `(i, j, k)` at `i·sx + j·sy + k`), the strides
@@ -372,6 +417,12 @@ impl<T: Real> CpuCorrelator<T> {
         let lz = self.geo.fft_len[2];
         let ax = self.geo.source_max[0].max(self.geo.kernel_dims[0]);
         let ay = self.geo.source_max[1].max(self.geo.kernel_dims[1]);
+        if (ws.ay, ws.lz) != (ay, lz) || ws.real.len() != ax * ay * lz {
+            // A new layout: the old one's values would sit anywhere in it.
+            ws.real.clear();
+            ws.dirty = [0, 0];
+            ws.runs_valid = false;
+        }
         ws.real.resize(ax * ay * lz, T::zero());
         ws.ay = ay;
         ws.lz = lz;
@@ -1073,5 +1124,38 @@ mod tests {
             assert_eq!(c.all_scores(&mut ws), brute_force_scores(s, &k));
         }
         assert!(ws.max_rounding_error < 1e-9);
+    }
+
+    /// One workspace through sparse grids (scored by the exact paths, which leave the grid
+    /// intact and are cleared run by run at the next `begin`) and dense ones (the transforms,
+    /// which destroy it), larger and smaller in turn: every best equals a fresh workspace's.
+    #[test]
+    fn a_workspace_cleared_run_by_run_scores_like_a_fresh_one() {
+        let mut next = crate::test_rng::uniform(29);
+        let k = random_occupancy([6, 5, 7], 0.15, &mut next);
+        let geo = Geometry::new(k.dims, [16, 16, 16]);
+        let c = CpuCorrelator::<f64>::new(geo, &k);
+        let kernels = ExactKernels::new(&geo, &k);
+        let mut ws = c.workspace();
+        let (mut by_runs, mut by_transforms) = (0, 0);
+        for round in 0..40 {
+            let dims = [16 - round % 5, 16 - round % 3, 16 - round % 7];
+            let p = if round % 4 == 3 { 0.5 } else { 0.01 };
+            let src = random_occupancy(dims, p, &mut next);
+            let cleared_by_runs = ws.runs_valid;
+            ws.load(&src);
+            by_runs += usize::from(cleared_by_runs);
+            let got = ws.direct_best(&kernels, &geo).unwrap_or_else(|| {
+                by_transforms += 1;
+                c.best_offset(&mut ws)
+            });
+            let mut fresh = c.workspace();
+            fresh.load(&src);
+            assert_eq!(got, c.best_offset(&mut fresh), "round {round}");
+        }
+        assert!(
+            by_runs >= 10 && by_transforms >= 5,
+            "{by_runs} {by_transforms}"
+        );
     }
 }
