@@ -248,6 +248,9 @@ impl<T: Real> Workspace<T> {
     fn clear_beyond_grid(&mut self) {
         let (sx, sy) = (self.ay * self.lz, self.lz);
         let ([nx, ny, _], [dx, dy]) = (self.ns, self.dirty);
+        if [dx, dy] == [nx, ny] {
+            return;
+        }
         for x in 0..dx {
             let from = if x < nx { ny } else { 0 };
             if from < dy {
