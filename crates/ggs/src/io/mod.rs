@@ -50,6 +50,7 @@ pub mod npz;
 pub mod pcd;
 pub mod ply;
 pub mod stream;
+pub mod text;
 pub mod xyz;
 
 use crate::cloud::{Cloud, CloudBuilder, Point, PointStore};

@@ -370,9 +370,15 @@ fn read_ascii(
     let cols: Vec<usize> = xyz.iter().map(|&i| first[i]).collect();
     // The header may overstate POINTS: an ascii point takes at least 6 bytes.
     let mut out = Vec::with_capacity(n.min(data.len() / 6));
-    for (li, raw) in data.split(|&b| b == b'\n').enumerate() {
+    let cols3 = [cols[0], cols[1], cols[2]];
+    for (li, raw) in crate::io::text::lines(data) {
         if out.len() == n {
             break;
+        }
+        // In stride where it can be (crate::io::text), else as below, which says what is wrong.
+        if let Some(p) = crate::io::text::xyz_columns(raw, &cols3, &crate::io::text::ASCII_SPACE) {
+            out.push(p);
+            continue;
         }
         let line_no = header_lines + li + 1;
         let line = std::str::from_utf8(raw)

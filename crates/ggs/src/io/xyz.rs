@@ -8,6 +8,7 @@
 
 use crate::cloud::Point;
 use crate::error::{GgsError, Result};
+use crate::io::text::{xyz_columns, SPACE, SPACE_COMMA_SEMICOLON};
 use std::path::Path;
 
 fn split(line: &str) -> impl Iterator<Item = &str> {
@@ -26,64 +27,104 @@ pub fn write_xyz(path: &Path, points: &[Point]) -> Result<()> {
     super::write_atomic(path, out.as_bytes())
 }
 
-/// Read points from delimited text.
+/// Read points from delimited text. The lines after the first meaningful one (a header, a
+/// `.pts` count or the first point) are read in chunks on the thread pool, each in stride
+/// where it can be ([`crate::io::text::xyz_columns`]) and by [`data_line`] otherwise.
 pub fn parse_xyz(path: &Path, bytes: &[u8]) -> Result<Vec<Point>> {
     let text = std::str::from_utf8(bytes)
         .map_err(|e| GgsError::at_byte(path, e.valid_up_to() as u64, "not valid UTF-8 text"))?;
     let mut cols = [0usize, 1, 2];
-    let mut out = Vec::new();
-    let mut seen_data_or_header = false;
-    for (i, line) in text.lines().enumerate() {
+    // The lines from the first point on: after a header or a .pts count, or from the first
+    // meaningful line when that is a point.
+    let mut body: &[u8] = &[];
+    let mut first_line = 1;
+    for (i, raw) in crate::io::text::lines(bytes) {
         let line_no = i + 1;
-        let t = line.trim();
-        if t.is_empty() || t.starts_with('#') || t.starts_with("//") {
+        let t = line_text(text, raw).trim();
+        if skipped(t) {
             continue;
         }
+        let at = raw.as_ptr() as usize - bytes.as_ptr() as usize;
+        (body, first_line) = (&bytes[(at + raw.len() + 1).min(bytes.len())..], line_no + 1);
         let toks: Vec<&str> = split(t).collect();
-        if !seen_data_or_header {
-            seen_data_or_header = true;
-            if toks.len() == 1 && toks[0].parse::<u64>().is_ok() {
-                continue; // .pts point count
-            }
-            let numeric = toks.len() >= 3 && toks[..3].iter().all(|s| s.parse::<f64>().is_ok());
-            if !numeric {
-                let lower: Vec<String> = toks
-                    .iter()
-                    .map(|s| s.trim_matches('"').to_ascii_lowercase())
-                    .collect();
-                let find = |n: &str| lower.iter().position(|s| s == n);
-                if let (Some(x), Some(y), Some(z)) = (find("x"), find("y"), find("z")) {
-                    cols = [x, y, z];
-                } else if toks.len() < 3 {
-                    return Err(GgsError::at_line(
-                        path,
-                        line_no,
-                        format!("expected at least 3 values (x y z), found {}", toks.len()),
-                    ));
-                }
-                continue;
-            }
+        if toks.len() == 1 && toks[0].parse::<u64>().is_ok() {
+            break; // .pts point count
         }
-        let mut p = [0.0; 3];
-        for d in 0..3 {
-            let tok = toks.get(cols[d]).ok_or_else(|| {
-                GgsError::at_line(
-                    path,
-                    line_no,
-                    format!(
-                        "expected at least {} values, found {}",
-                        cols[d] + 1,
-                        toks.len()
-                    ),
-                )
-            })?;
-            p[d] = tok.parse::<f64>().map_err(|_| {
-                GgsError::at_line(path, line_no, format!("'{tok}' is not a number"))
-            })?;
+        let numeric = toks.len() >= 3 && toks[..3].iter().all(|s| s.parse::<f64>().is_ok());
+        if numeric {
+            (body, first_line) = (&bytes[at..], line_no);
+            break;
         }
-        out.push(p);
+        let lower: Vec<String> = toks
+            .iter()
+            .map(|s| s.trim_matches('"').to_ascii_lowercase())
+            .collect();
+        let find = |n: &str| lower.iter().position(|s| s == n);
+        if let (Some(x), Some(y), Some(z)) = (find("x"), find("y"), find("z")) {
+            cols = [x, y, z];
+        } else if toks.len() < 3 {
+            return Err(GgsError::at_line(
+                path,
+                line_no,
+                format!("expected at least 3 values (x y z), found {}", toks.len()),
+            ));
+        }
+        break;
     }
-    Ok(out)
+    crate::io::text::parse_lines(body, first_line, |line_no, raw| {
+        let first = raw.iter().find(|&&b| !SPACE.has(b));
+        let comment = matches!(first, Some(b'#' | b'/'));
+        match (!comment)
+            .then(|| xyz_columns(raw, &cols, &SPACE_COMMA_SEMICOLON))
+            .flatten()
+        {
+            Some(p) => Ok(Some(p)),
+            None => {
+                let line = std::str::from_utf8(raw).expect("checked above");
+                data_line(path, line_no, line.trim(), &cols)
+            }
+        }
+    })
+}
+
+/// The text of a line of `text` given as bytes (a trailing `\r` dropped, as `str::lines`
+/// does).
+fn line_text<'a>(text: &'a str, raw: &[u8]) -> &'a str {
+    let at = raw.as_ptr() as usize - text.as_ptr() as usize;
+    let line = &text[at..at + raw.len()];
+    line.strip_suffix('\r').unwrap_or(line)
+}
+
+/// Whether a trimmed line holds no point: blank, or a `#` or `//` comment.
+fn skipped(t: &str) -> bool {
+    t.is_empty() || t.starts_with('#') || t.starts_with("//")
+}
+
+/// The point on trimmed line `t` (line `line_no`), its columns `cols`; `None` for a line
+/// that holds none ([`skipped`]).
+fn data_line(path: &Path, line_no: usize, t: &str, cols: &[usize; 3]) -> Result<Option<Point>> {
+    if skipped(t) {
+        return Ok(None);
+    }
+    let toks: Vec<&str> = split(t).collect();
+    let mut p = [0.0; 3];
+    for d in 0..3 {
+        let tok = toks.get(cols[d]).ok_or_else(|| {
+            GgsError::at_line(
+                path,
+                line_no,
+                format!(
+                    "expected at least {} values, found {}",
+                    cols[d] + 1,
+                    toks.len()
+                ),
+            )
+        })?;
+        p[d] = tok
+            .parse::<f64>()
+            .map_err(|_| GgsError::at_line(path, line_no, format!("'{tok}' is not a number")))?;
+    }
+    Ok(Some(p))
 }
 
 #[cfg(test)]
@@ -117,6 +158,40 @@ mod tests {
             parse_xyz(Path::new("a.pts"), s.as_bytes()).unwrap(),
             vec![[2.6, 0.052, -1.0], [1.0, 2.0, 3.0]]
         );
+    }
+
+    #[test]
+    fn comments_blank_lines_and_crlf_between_points_with_named_columns() {
+        let s = "id;x;y;z\r\n# 1;2;3;4\r\n\r\n7;1;2;3\r\n  // 5 6 7 8\n8 ,4, 5 ,6\n";
+        assert_eq!(
+            parse_xyz(Path::new(P), s.as_bytes()).unwrap(),
+            vec![[1.0, 2.0, 3.0], [4.0, 5.0, 6.0]]
+        );
+    }
+
+    /// A body large enough to be read in several chunks reads as the lines say, and an error
+    /// deep in it names its line.
+    #[test]
+    fn a_large_body_reads_in_order_and_names_a_bad_line() {
+        let mut s = String::from("x y z\n");
+        let mut want = Vec::new();
+        for i in 0..150_000 {
+            let p = [i as f64 / 7.0, -(i as f64) * 1e-3, 0.5];
+            s.push_str(&format!("{} {} {}\n", p[0], p[1], p[2]));
+            if i % 1000 == 0 {
+                s.push_str("# a comment\n\n");
+            }
+            want.push(p);
+        }
+        assert!(s.len() > 4 * crate::io::text::CHUNK_BYTES);
+        assert_eq!(parse_xyz(Path::new(P), s.as_bytes()).unwrap(), want);
+        let lines: Vec<&str> = s.lines().collect();
+        let bad = 120_000;
+        let mut broken = lines.clone();
+        broken[bad] = "1 2 oops";
+        let e = parse_xyz(Path::new(P), broken.join("\n").as_bytes()).unwrap_err();
+        assert_eq!(e.location(), Some(crate::error::Location::Line(bad + 1)));
+        assert!(e.to_string().contains("'oops' is not a number"), "{e}");
     }
 
     #[test]

@@ -3,6 +3,7 @@
 use super::header::{Element, Header, Property, Scalar};
 use crate::cloud::Point;
 use crate::error::{GgsError, Location, Result};
+use crate::io::text::{parse_lines, Row, ASCII_SPACE};
 use std::path::Path;
 
 /// Where face polygons are collected: the face element, its index list property, and the
@@ -86,6 +87,60 @@ pub(super) fn ascii_row(
     Ok(vals)
 }
 
+/// The non-blank lines of an ascii body, one row each, with their positions.
+struct RowCursor<'a> {
+    text: &'a [u8],
+    /// Where the next line starts (past the end: no line left).
+    pos: usize,
+    /// The index of that line among all lines of `text`, from 0.
+    line: usize,
+}
+
+impl<'a> RowCursor<'a> {
+    /// The next non-blank line: its index among the lines, its start and its bytes.
+    fn next_row(&mut self) -> Option<(usize, usize, &'a [u8])> {
+        while self.pos <= self.text.len() {
+            let (start, rest) = (self.pos, &self.text[self.pos..]);
+            let len = memchr::memchr(b'\n', rest).unwrap_or(rest.len());
+            let li = self.line;
+            self.pos += len + 1;
+            self.line += 1;
+            let raw = &rest[..len];
+            if !raw.iter().all(|&b| ASCII_SPACE.has(b)) {
+                return Some((li, start, raw));
+            }
+        }
+        None
+    }
+
+    /// The `k`-th row of `el` is missing.
+    fn truncated(path: &Path, el: &Element, k: usize) -> GgsError {
+        GgsError::in_file(
+            path,
+            format!(
+                "truncated: element '{}' declares {} rows, the file ends after {k}",
+                el.name, el.count
+            ),
+        )
+    }
+}
+
+/// A vertex row whose properties are all numbers, read in stride: the values at `xyz`, or
+/// `None` for anything else (a missing or malformed value, a non-ascii byte), which
+/// [`ascii_row`] then reads and reports.
+#[inline]
+fn fast_row(raw: &[u8], props: usize, xyz: &[usize]) -> Option<Point> {
+    let mut row = Row::new(raw, &ASCII_SPACE);
+    let mut vals = [0.0f64; 3];
+    for pi in 0..props {
+        let v = row.number()?;
+        if let Some(d) = xyz.iter().position(|&x| x == pi) {
+            vals[d] = v;
+        }
+    }
+    row.rest().is_ascii().then_some(vals)
+}
+
 pub(super) fn read_ascii(
     path: &Path,
     bytes: &[u8],
@@ -95,26 +150,24 @@ pub(super) fn read_ascii(
     faces: &mut Option<FaceSink>,
 ) -> Result<Vec<Point>> {
     let text = &bytes[h.data_start..];
-    let mut lines = text
-        .split(|&b| b == b'\n')
-        .enumerate()
-        .filter(|(_, l)| !l.iter().all(|b| b.is_ascii_whitespace()));
-    // A header may declare more rows than the file holds: reserve no more than the bytes
-    // could hold (an ascii vertex takes at least 6 bytes).
-    let mut out = Vec::with_capacity(h.elements[vi].count.min(text.len() / 6));
+    let mut rows = RowCursor {
+        text,
+        pos: 0,
+        line: 0,
+    };
+    let mut out = Vec::new();
     let last = faces.as_ref().map_or(vi, |f| f.element.max(vi));
     for (ei, el) in h.elements.iter().enumerate().take(last + 1) {
+        let collect_faces = faces.as_ref().is_some_and(|f| f.element == ei);
+        let scalars = el.props.iter().all(|p| matches!(p, Property::Scalar(..)));
+        if ei == vi && scalars && !collect_faces {
+            out = read_vertex_rows(path, h, &mut rows, el, xyz)?;
+            continue;
+        }
         for k in 0..el.count {
-            let (li, raw) = lines.next().ok_or_else(|| {
-                GgsError::in_file(
-                    path,
-                    format!(
-                        "truncated: element '{}' declares {} rows, the file ends after {k}",
-                        el.name, el.count
-                    ),
-                )
-            })?;
-            let collect_faces = faces.as_ref().is_some_and(|f| f.element == ei);
+            let (li, _, raw) = rows
+                .next_row()
+                .ok_or_else(|| RowCursor::truncated(path, el, k))?;
             if ei != vi && !collect_faces {
                 continue;
             }
@@ -128,6 +181,40 @@ pub(super) fn read_ascii(
         }
     }
     Ok(out)
+}
+
+/// The rows of the vertex element `el` (scalar properties only) from where `rows` stands:
+/// found line by line, then read in chunks on the thread pool ([`parse_lines`]), each row in
+/// stride where it can be ([`fast_row`]), else by [`ascii_row`].
+fn read_vertex_rows(
+    path: &Path,
+    h: &Header,
+    rows: &mut RowCursor,
+    el: &Element,
+    xyz: &[usize],
+) -> Result<Vec<Point>> {
+    let (first_line, start) = (rows.line, rows.pos.min(rows.text.len()));
+    let mut end = start;
+    for k in 0..el.count {
+        let (_, at, raw) = rows
+            .next_row()
+            .ok_or_else(|| RowCursor::truncated(path, el, k))?;
+        end = at + raw.len();
+    }
+    let props = el.props.len();
+    parse_lines(
+        &rows.text[start..end],
+        h.lines + first_line + 1,
+        |line_no, raw| {
+            if raw.iter().all(|&b| ASCII_SPACE.has(b)) {
+                return Ok(None);
+            }
+            match fast_row(raw, props, xyz) {
+                Some(p) => Ok(Some(p)),
+                None => ascii_row(path, line_no, raw, el, xyz, None).map(Some),
+            }
+        },
+    )
 }
 
 pub(super) fn read_binary(
