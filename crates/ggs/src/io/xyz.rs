@@ -29,7 +29,7 @@ pub fn write_xyz(path: &Path, points: &[Point]) -> Result<()> {
 
 /// Read points from delimited text. The lines after the first meaningful one (a header, a
 /// `.pts` count or the first point) are read in chunks on the thread pool, each in stride
-/// where it can be ([`crate::io::text::xyz_columns`]) and by [`data_line`] otherwise.
+/// where it can be ([`crate::io::text::xyz_columns`]) and by the general line reader otherwise.
 pub fn parse_xyz(path: &Path, bytes: &[u8]) -> Result<Vec<Point>> {
     let text = std::str::from_utf8(bytes)
         .map_err(|e| GgsError::at_byte(path, e.valid_up_to() as u64, "not valid UTF-8 text"))?;
