@@ -299,6 +299,94 @@ where
     Ok(out)
 }
 
+/// Bytes of text read from a stream at a time ([`TextChunks`]).
+pub const STREAM_BYTES: usize = 4 << 20;
+
+/// A chunk of whole lines of a text stream: its bytes (the last line's line feed included,
+/// but at the end of the stream), the file offset of its first byte and the file's line
+/// number (1-based) of its first line.
+pub struct TextChunk<'a> {
+    pub bytes: &'a [u8],
+    pub offset: u64,
+    pub line: usize,
+}
+
+/// A text stream read [`STREAM_BYTES`] at a time and handed out in chunks of whole lines, so
+/// a large text file is parsed with a few MB beside its points (a line longer than the
+/// buffer grows it).
+pub struct TextChunks<R> {
+    r: R,
+    buf: Vec<u8>,
+    /// `buf[..len]` holds bytes read and not yet handed out.
+    len: usize,
+    /// File offset and line number of `buf[0]`.
+    offset: u64,
+    line: usize,
+    /// Bytes handed out by the last chunk, dropped before the next read.
+    handed: usize,
+    eof: bool,
+}
+
+impl<R: std::io::Read> TextChunks<R> {
+    /// Chunks of `r`, whose next byte is byte `offset` of the file, on line `line`.
+    pub fn new(r: R, offset: u64, line: usize) -> Self {
+        TextChunks {
+            r,
+            buf: Vec::new(),
+            len: 0,
+            offset,
+            line,
+            handed: 0,
+            eof: false,
+        }
+    }
+
+    /// The next chunk (`None` at the end of the stream).
+    pub fn next_chunk(&mut self, path: &std::path::Path) -> Result<Option<TextChunk<'_>>> {
+        // Drop what the last chunk handed out.
+        let handed = std::mem::take(&mut self.handed);
+        self.line += memchr::memchr_iter(b'\n', &self.buf[..handed]).count();
+        self.offset += handed as u64;
+        self.buf.copy_within(handed..self.len, 0);
+        self.len -= handed;
+        loop {
+            let end = if self.eof {
+                self.len
+            } else {
+                match memchr::memrchr(b'\n', &self.buf[..self.len]) {
+                    Some(nl) if self.len >= STREAM_BYTES / 2 => nl + 1,
+                    _ => {
+                        self.fill(path)?;
+                        continue;
+                    }
+                }
+            };
+            if end == 0 {
+                return Ok(None);
+            }
+            self.handed = end;
+            return Ok(Some(TextChunk {
+                bytes: &self.buf[..end],
+                offset: self.offset,
+                line: self.line,
+            }));
+        }
+    }
+
+    /// Read more, growing the buffer when it is full (a long line).
+    fn fill(&mut self, path: &std::path::Path) -> Result<()> {
+        if self.buf.len() < self.len + STREAM_BYTES / 2 {
+            self.buf.resize((self.buf.len() * 2).max(STREAM_BYTES), 0);
+        }
+        let want = self.buf.len() - self.len;
+        let got = crate::io::stream::read_full(&mut self.r, &mut self.buf[self.len..])
+            .map_err(|e| crate::GgsError::io(path, e))?;
+        self.len += got;
+        self.eof = got < want;
+        Ok(())
+    }
+}
+
 /// Where the chunks of `body` start, and its length last: every start but the first just
 /// after a line feed, about [`CHUNK_BYTES`] apart.
 fn chunk_starts(body: &[u8]) -> Vec<usize> {
@@ -425,6 +513,42 @@ mod tests {
         })
         .unwrap_err();
         assert_eq!(e.location(), Some(crate::error::Location::Line(want_line)));
+    }
+
+    /// A reader that hands out at most 1000 bytes a call.
+    struct Trickle<'a>(&'a [u8]);
+    impl std::io::Read for Trickle<'_> {
+        fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+            let n = buf.len().min(self.0.len()).min(1000);
+            buf[..n].copy_from_slice(&self.0[..n]);
+            self.0 = &self.0[n..];
+            Ok(n)
+        }
+    }
+
+    #[test]
+    fn text_chunks_are_whole_lines_that_make_the_stream() {
+        // Lines of every length, one longer than the buffer, and no final line feed.
+        let mut text = Vec::new();
+        for i in 0..400_000usize {
+            text.extend(std::iter::repeat_n(b'a' + (i % 26) as u8, i % 41));
+            text.push(b'\n');
+        }
+        text.extend(std::iter::repeat_n(b'z', STREAM_BYTES + 17));
+        text.extend_from_slice(b"\nlast");
+        let mut chunks = TextChunks::new(Trickle(&text), 0, 1);
+        let (mut joined, mut n) = (Vec::new(), 0);
+        let path = std::path::Path::new("t");
+        while let Some(c) = chunks.next_chunk(path).unwrap() {
+            assert_eq!(c.offset, joined.len() as u64);
+            let feeds = joined.iter().filter(|&&b| b == b'\n').count();
+            assert_eq!(c.line, feeds + 1);
+            assert!(c.bytes.ends_with(b"\n") || c.bytes.ends_with(b"last"));
+            joined.extend_from_slice(c.bytes);
+            n += 1;
+        }
+        assert_eq!(joined, text);
+        assert!(n >= 3, "{n} chunks");
     }
 
     proptest! {

@@ -6,7 +6,7 @@
 //! holding a single integer (the point count) is skipped. Lines starting with `#` or `//`
 //! and blank lines are ignored.
 
-use crate::cloud::Point;
+use crate::cloud::{Point, PointStore};
 use crate::error::{GgsError, Result};
 use crate::io::text::{xyz_columns, SPACE, SPACE_COMMA_SEMICOLON};
 use std::path::Path;
@@ -27,33 +27,77 @@ pub fn write_xyz(path: &Path, points: &[Point]) -> Result<()> {
     super::write_atomic(path, out.as_bytes())
 }
 
-/// Read points from delimited text. The lines after the first meaningful one (a header, a
-/// `.pts` count or the first point) are read in chunks on the thread pool, each in stride
-/// where it can be ([`crate::io::text::xyz_columns`]) and by the general line reader otherwise.
+/// Read points from delimited text (see [`read_xyz_into`]).
 pub fn parse_xyz(path: &Path, bytes: &[u8]) -> Result<Vec<Point>> {
-    let text = std::str::from_utf8(bytes)
-        .map_err(|e| GgsError::at_byte(path, e.valid_up_to() as u64, "not valid UTF-8 text"))?;
-    let mut cols = [0usize, 1, 2];
-    // The lines from the first point on: after a header or a .pts count, or from the first
-    // meaningful line when that is a point.
-    let mut body: &[u8] = &[];
-    let mut first_line = 1;
+    read_xyz_into::<Vec<Point>, _>(path, bytes)
+}
+
+/// Read points from delimited text, streamed: the text is read a few MB at a time in whole
+/// lines ([`crate::io::text::TextChunks`]), each chunk checked as UTF-8, then its lines from
+/// the first point on (after a header or a `.pts` count) read in parallel chunks, each in
+/// stride where it can be ([`crate::io::text::xyz_columns`]) and by the general line reader
+/// otherwise. The error is the first in file order (of a chunk's lines, a UTF-8 error first).
+pub fn read_xyz_into<S: PointStore, R: std::io::Read>(path: &Path, r: R) -> Result<S::Out> {
+    let mut chunks = crate::io::text::TextChunks::new(r, 0, 1);
+    let mut out = S::with_capacity(0);
+    // The columns, once the first meaningful line has said where they are.
+    let mut cols: Option<[usize; 3]> = None;
+    while let Some(chunk) = chunks.next_chunk(path)? {
+        let text = std::str::from_utf8(chunk.bytes).map_err(|e| {
+            GgsError::at_byte(
+                path,
+                chunk.offset + e.valid_up_to() as u64,
+                "not valid UTF-8 text",
+            )
+        })?;
+        let (body, first_line, c) = match cols {
+            Some(c) => (chunk.bytes, chunk.line, c),
+            None => match header(path, text, chunk.line)? {
+                Some((at, line, c)) => (&chunk.bytes[at..], line, c),
+                None => continue,
+            },
+        };
+        cols = Some(c);
+        let points = crate::io::text::parse_lines(body, first_line, |line_no, raw| {
+            let first = raw.iter().find(|&&b| !SPACE.has(b));
+            let comment = matches!(first, Some(b'#' | b'/'));
+            match (!comment)
+                .then(|| xyz_columns(raw, &c, &SPACE_COMMA_SEMICOLON))
+                .flatten()
+            {
+                Some(p) => Ok(Some(p)),
+                None => {
+                    let line = std::str::from_utf8(raw).expect("checked above");
+                    data_line(path, line_no, line.trim(), &c)
+                }
+            }
+        })?;
+        out.extend_from(&points);
+    }
+    Ok(out.finish())
+}
+
+/// The first meaningful line of `text` (whose first line is line `line0` of the file): a
+/// header naming `x y z` (their columns), another header or a `.pts` count (the first
+/// three columns), or the first point. `Some((byte, line, columns))`: where the points
+/// start; `None` when `text` holds no meaningful line.
+fn header(path: &Path, text: &str, line0: usize) -> Result<Option<(usize, usize, [usize; 3])>> {
+    let bytes = text.as_bytes();
     for (i, raw) in crate::io::text::lines(bytes) {
-        let line_no = i + 1;
+        let line_no = line0 + i;
         let t = line_text(text, raw).trim();
         if skipped(t) {
             continue;
         }
         let at = raw.as_ptr() as usize - bytes.as_ptr() as usize;
-        (body, first_line) = (&bytes[(at + raw.len() + 1).min(bytes.len())..], line_no + 1);
+        let after = (at + raw.len() + 1).min(bytes.len());
         let toks: Vec<&str> = split(t).collect();
         if toks.len() == 1 && toks[0].parse::<u64>().is_ok() {
-            break; // .pts point count
+            return Ok(Some((after, line_no + 1, [0, 1, 2]))); // .pts point count
         }
         let numeric = toks.len() >= 3 && toks[..3].iter().all(|s| s.parse::<f64>().is_ok());
         if numeric {
-            (body, first_line) = (&bytes[at..], line_no);
-            break;
+            return Ok(Some((at, line_no, [0, 1, 2])));
         }
         let lower: Vec<String> = toks
             .iter()
@@ -61,7 +105,7 @@ pub fn parse_xyz(path: &Path, bytes: &[u8]) -> Result<Vec<Point>> {
             .collect();
         let find = |n: &str| lower.iter().position(|s| s == n);
         if let (Some(x), Some(y), Some(z)) = (find("x"), find("y"), find("z")) {
-            cols = [x, y, z];
+            return Ok(Some((after, line_no + 1, [x, y, z])));
         } else if toks.len() < 3 {
             return Err(GgsError::at_line(
                 path,
@@ -69,22 +113,9 @@ pub fn parse_xyz(path: &Path, bytes: &[u8]) -> Result<Vec<Point>> {
                 format!("expected at least 3 values (x y z), found {}", toks.len()),
             ));
         }
-        break;
+        return Ok(Some((after, line_no + 1, [0, 1, 2])));
     }
-    crate::io::text::parse_lines(body, first_line, |line_no, raw| {
-        let first = raw.iter().find(|&&b| !SPACE.has(b));
-        let comment = matches!(first, Some(b'#' | b'/'));
-        match (!comment)
-            .then(|| xyz_columns(raw, &cols, &SPACE_COMMA_SEMICOLON))
-            .flatten()
-        {
-            Some(p) => Ok(Some(p)),
-            None => {
-                let line = std::str::from_utf8(raw).expect("checked above");
-                data_line(path, line_no, line.trim(), &cols)
-            }
-        }
-    })
+    Ok(None)
 }
 
 /// The text of a line of `text` given as bytes (a trailing `\r` dropped, as `str::lines`

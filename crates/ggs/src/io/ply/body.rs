@@ -2,8 +2,9 @@
 
 use super::header::{Element, Header, Property, Scalar};
 use crate::cloud::Point;
+use crate::cloud::PointStore;
 use crate::error::{GgsError, Location, Result};
-use crate::io::text::{parse_lines, Row, ASCII_SPACE};
+use crate::io::text::{parse_lines, Row, TextChunks, ASCII_SPACE};
 use std::path::Path;
 
 /// Where face polygons are collected: the face element, its index list property, and the
@@ -215,6 +216,68 @@ fn read_vertex_rows(
             }
         },
     )
+}
+
+/// The vertex rows of an ascii PLY streamed from `r` (positioned at the body, byte
+/// `h.data_start`), when the vertex element has scalar properties only and no face is
+/// wanted: the rows of the elements before it skipped, its rows parsed chunk by chunk as
+/// [`read_vertex_rows`] parses them, nothing after them read. The memory beside the points
+/// is a few MB of text ([`TextChunks`]).
+pub(super) fn read_ascii_streamed<S: PointStore, R: std::io::Read>(
+    path: &Path,
+    r: R,
+    h: &Header,
+    vi: usize,
+    xyz: &[usize],
+    reserve: usize,
+) -> Result<S::Out> {
+    let mut chunks = TextChunks::new(r, h.data_start as u64, h.lines + 1);
+    let vertex = &h.elements[vi];
+    let mut out = S::with_capacity(vertex.count.min(reserve));
+    // The element being read and the rows of it read so far.
+    let (mut ei, mut k) = (0, 0);
+    let props = vertex.props.len();
+    while ei < vi || k < vertex.count {
+        let Some(chunk) = chunks.next_chunk(path)? else {
+            return Err(RowCursor::truncated(path, &h.elements[ei], k));
+        };
+        let mut rows = RowCursor {
+            text: chunk.bytes,
+            pos: 0,
+            line: 0,
+        };
+        while ei < vi {
+            if k == h.elements[ei].count {
+                (ei, k) = (ei + 1, 0);
+            } else if rows.next_row().is_some() {
+                k += 1;
+            } else {
+                break;
+            }
+        }
+        if ei < vi {
+            continue;
+        }
+        let (first_line, start) = (chunk.line + rows.line, rows.pos.min(chunk.bytes.len()));
+        let mut end = start;
+        while k < vertex.count {
+            let Some((_, at, raw)) = rows.next_row() else {
+                break;
+            };
+            (end, k) = (at + raw.len(), k + 1);
+        }
+        let points = parse_lines(&chunk.bytes[start..end], first_line, |line_no, raw| {
+            if raw.iter().all(|&b| ASCII_SPACE.has(b)) {
+                return Ok(None);
+            }
+            match fast_row(raw, props, xyz) {
+                Some(p) => Ok(Some(p)),
+                None => ascii_row(path, line_no, raw, vertex, xyz, None).map(Some),
+            }
+        })?;
+        out.extend_from(&points);
+    }
+    Ok(out.finish())
 }
 
 pub(super) fn read_binary(
