@@ -348,7 +348,7 @@ fn read_points<S: PointStore, R: BufRead + Seek + Send + Sync + 'static>(
         Format::Npz => npz::read_npz_points(path, r, opts.npz_array.as_deref())?,
         Format::Obj => sampled(path, opts, mesh::parse_obj(path, &read_all(path, r, len)?)?)?,
         Format::Stl => sampled(path, opts, mesh::parse_stl(path, &read_all(path, r, len)?)?)?,
-        Format::Text => return Ok((fmt, xyz::read_xyz_into::<S, R>(path, r)?)),
+        Format::Text => return Ok((fmt, xyz::read_xyz_into::<S, R>(path, r, Some(len))?)),
         Format::Npy => npy::points_of(path, &npy::parse_npy(path, &read_all(path, r, len)?)?)?,
     };
     Ok((fmt, S::from_vec(points)))

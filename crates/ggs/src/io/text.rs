@@ -316,27 +316,33 @@ pub struct TextChunk<'a> {
 /// buffer grows it).
 pub struct TextChunks<R> {
     r: R,
+    /// Bytes read and not yet handed out (the first `handed` of them handed out by the last
+    /// chunk).
     buf: Vec<u8>,
-    /// `buf[..len]` holds bytes read and not yet handed out.
-    len: usize,
     /// File offset and line number of `buf[0]`.
     offset: u64,
     line: usize,
-    /// Bytes handed out by the last chunk, dropped before the next read.
     handed: usize,
+    /// Bytes of the first read: the rest of the file when its size is known and small.
+    first_read: usize,
     eof: bool,
 }
 
 impl<R: std::io::Read> TextChunks<R> {
-    /// Chunks of `r`, whose next byte is byte `offset` of the file, on line `line`.
-    pub fn new(r: R, offset: u64, line: usize) -> Self {
+    /// Chunks of `r`, whose next byte is byte `offset` of the file, on line `line`;
+    /// `remaining`: the bytes left in the file, when known (a small file is then read in one
+    /// allocation of its size).
+    pub fn new(r: R, offset: u64, line: usize, remaining: Option<u64>) -> Self {
+        let first_read = remaining.map_or(STREAM_BYTES, |n| {
+            usize::try_from(n).unwrap_or(usize::MAX).min(STREAM_BYTES) + 1
+        });
         TextChunks {
             r,
             buf: Vec::new(),
-            len: 0,
             offset,
             line,
             handed: 0,
+            first_read,
             eof: false,
         }
     }
@@ -347,14 +353,13 @@ impl<R: std::io::Read> TextChunks<R> {
         let handed = std::mem::take(&mut self.handed);
         self.line += memchr::memchr_iter(b'\n', &self.buf[..handed]).count();
         self.offset += handed as u64;
-        self.buf.copy_within(handed..self.len, 0);
-        self.len -= handed;
+        self.buf.drain(..handed);
         loop {
             let end = if self.eof {
-                self.len
+                self.buf.len()
             } else {
-                match memchr::memrchr(b'\n', &self.buf[..self.len]) {
-                    Some(nl) if self.len >= STREAM_BYTES / 2 => nl + 1,
+                match memchr::memrchr(b'\n', &self.buf) {
+                    Some(nl) if self.buf.len() >= STREAM_BYTES / 2 => nl + 1,
                     _ => {
                         self.fill(path)?;
                         continue;
@@ -373,16 +378,17 @@ impl<R: std::io::Read> TextChunks<R> {
         }
     }
 
-    /// Read more, growing the buffer when it is full (a long line).
+    /// Read up to [`STREAM_BYTES`] more (into spare capacity: nothing is zeroed first).
     fn fill(&mut self, path: &std::path::Path) -> Result<()> {
-        if self.buf.len() < self.len + STREAM_BYTES / 2 {
-            self.buf.resize((self.buf.len() * 2).max(STREAM_BYTES), 0);
-        }
-        let want = self.buf.len() - self.len;
-        let got = crate::io::stream::read_full(&mut self.r, &mut self.buf[self.len..])
+        use std::io::Read;
+        let want = std::mem::replace(&mut self.first_read, STREAM_BYTES);
+        let before = self.buf.len();
+        self.buf.reserve(want);
+        (&mut self.r)
+            .take(want as u64)
+            .read_to_end(&mut self.buf)
             .map_err(|e| crate::GgsError::io(path, e))?;
-        self.len += got;
-        self.eof = got < want;
+        self.eof = self.buf.len() - before < want;
         Ok(())
     }
 }
@@ -536,7 +542,7 @@ mod tests {
         }
         text.extend(std::iter::repeat_n(b'z', STREAM_BYTES + 17));
         text.extend_from_slice(b"\nlast");
-        let mut chunks = TextChunks::new(Trickle(&text), 0, 1);
+        let mut chunks = TextChunks::new(Trickle(&text), 0, 1, None);
         let (mut joined, mut n) = (Vec::new(), 0);
         let path = std::path::Path::new("t");
         while let Some(c) = chunks.next_chunk(path).unwrap() {

@@ -29,7 +29,7 @@ pub fn write_xyz(path: &Path, points: &[Point]) -> Result<()> {
 
 /// Read points from delimited text (see [`read_xyz_into`]).
 pub fn parse_xyz(path: &Path, bytes: &[u8]) -> Result<Vec<Point>> {
-    read_xyz_into::<Vec<Point>, _>(path, bytes)
+    read_xyz_into::<Vec<Point>, _>(path, bytes, Some(bytes.len() as u64))
 }
 
 /// Read points from delimited text, streamed: the text is read a few MB at a time in whole
@@ -37,8 +37,13 @@ pub fn parse_xyz(path: &Path, bytes: &[u8]) -> Result<Vec<Point>> {
 /// the first point on (after a header or a `.pts` count) read in parallel chunks, each in
 /// stride where it can be ([`crate::io::text::xyz_columns`]) and by the general line reader
 /// otherwise. The error is the first in file order (of a chunk's lines, a UTF-8 error first).
-pub fn read_xyz_into<S: PointStore, R: std::io::Read>(path: &Path, r: R) -> Result<S::Out> {
-    let mut chunks = crate::io::text::TextChunks::new(r, 0, 1);
+/// `len`: the file's size, when known.
+pub fn read_xyz_into<S: PointStore, R: std::io::Read>(
+    path: &Path,
+    r: R,
+    len: Option<u64>,
+) -> Result<S::Out> {
+    let mut chunks = crate::io::text::TextChunks::new(r, 0, 1, len);
     let mut out = S::with_capacity(0);
     // The columns, once the first meaningful line has said where they are.
     let mut cols: Option<[usize; 3]> = None;

@@ -229,9 +229,12 @@ pub(super) fn read_ascii_streamed<S: PointStore, R: std::io::Read>(
     h: &Header,
     vi: usize,
     xyz: &[usize],
-    reserve: usize,
+    file_len: Option<u64>,
 ) -> Result<S::Out> {
-    let mut chunks = TextChunks::new(r, h.data_start as u64, h.lines + 1);
+    let remaining = file_len.map(|n| n.saturating_sub(h.data_start as u64));
+    // At most the rows the file's size can hold (an ascii row takes at least 6 bytes).
+    let reserve = remaining.map_or(1 << 20, |n| (n / 6) as usize);
+    let mut chunks = TextChunks::new(r, h.data_start as u64, h.lines + 1, remaining);
     let vertex = &h.elements[vi];
     let mut out = S::with_capacity(vertex.count.min(reserve));
     // The element being read and the rows of it read so far.

@@ -68,8 +68,7 @@ fn read_ply_chunked<S: PointStore, R: BufRead + Send>(
     let scalars = |e: &Element| e.props.iter().all(|p| matches!(p, Property::Scalar(..)));
     if h.encoding == Encoding::Ascii && scalars(&h.elements[vi]) {
         let xyz = xyz_properties(path, &h, vi)?;
-        let reserve = file_len.map_or(1 << 20, |l| (l / 6) as usize);
-        return read_ascii_streamed::<S, _>(path, r, &h, vi, &xyz, reserve);
+        return read_ascii_streamed::<S, _>(path, r, &h, vi, &xyz, file_len);
     }
     let fixed =
         h.encoding != Encoding::Ascii && h.elements[..=vi].iter().all(|e| row_size(e).is_some());
