@@ -57,6 +57,9 @@ pub fn read_pcd_into<S: PointStore, R: BufRead + Send>(
             .is_some_and(|k| k.eq_ignore_ascii_case("DATA"))
     })?;
     let h = parse_header(path, &header)?;
+    if h.data_kind == "ascii" {
+        return read_ascii_streamed::<S, _>(path, r, &h, file_len);
+    }
     if h.data_kind != "binary" {
         stream::read_rest(path, r, &mut header, file_len)?;
         return Ok(S::from_vec(parse_pcd(path, &header)?));
@@ -352,14 +355,8 @@ fn decode(f: &Field, b: &[u8]) -> f64 {
     }
 }
 
-fn read_ascii(
-    path: &Path,
-    data: &[u8],
-    header_lines: usize,
-    fields: &[Field],
-    xyz: &[usize],
-    n: usize,
-) -> Result<Vec<Point>> {
+/// The token columns of x, y, z in an ascii row, and the number of values a row holds.
+fn ascii_columns(fields: &[Field], xyz: &[usize]) -> ([usize; 3], usize) {
     // Token index of the first value of each field.
     let mut first = Vec::with_capacity(fields.len());
     let mut t = 0;
@@ -367,20 +364,29 @@ fn read_ascii(
         first.push(t);
         t += f.count;
     }
-    let cols: Vec<usize> = xyz.iter().map(|&i| first[i]).collect();
-    // The header may overstate POINTS: an ascii point takes at least 6 bytes.
-    let mut out = Vec::with_capacity(n.min(data.len() / 6));
-    let cols3 = [cols[0], cols[1], cols[2]];
+    ([first[xyz[0]], first[xyz[1]], first[xyz[2]]], t)
+}
+
+/// Read the points of the ascii lines of `data` (whose first line is line `first_line` of
+/// the file) into `out` until it holds `n`; blank lines are skipped.
+fn ascii_rows(
+    path: &Path,
+    data: &[u8],
+    first_line: usize,
+    (cols, t): ([usize; 3], usize),
+    n: usize,
+    out: &mut Vec<Point>,
+) -> Result<()> {
     for (li, raw) in crate::io::text::lines(data) {
         if out.len() == n {
             break;
         }
         // In stride where it can be (crate::io::text), else as below, which says what is wrong.
-        if let Some(p) = crate::io::text::xyz_columns(raw, &cols3, &crate::io::text::ASCII_SPACE) {
+        if let Some(p) = crate::io::text::xyz_columns(raw, &cols, &crate::io::text::ASCII_SPACE) {
             out.push(p);
             continue;
         }
-        let line_no = header_lines + li + 1;
+        let line_no = first_line + li;
         let line = std::str::from_utf8(raw)
             .map_err(|_| GgsError::at_line(path, line_no, "not valid text"))?;
         if line.trim().is_empty() {
@@ -402,16 +408,60 @@ fn read_ascii(
         }
         out.push(p);
     }
+    Ok(())
+}
+
+/// The error of a file that holds `got` of the header's `n` points.
+fn truncated(path: &Path, n: usize, got: usize) -> GgsError {
+    GgsError::in_file(
+        path,
+        format!("truncated: the header declares {n} points, the file holds {got}"),
+    )
+}
+
+fn read_ascii(
+    path: &Path,
+    data: &[u8],
+    header_lines: usize,
+    fields: &[Field],
+    xyz: &[usize],
+    n: usize,
+) -> Result<Vec<Point>> {
+    // The header may overstate POINTS: an ascii point takes at least 6 bytes.
+    let mut out = Vec::with_capacity(n.min(data.len() / 6));
+    let columns = ascii_columns(fields, xyz);
+    ascii_rows(path, data, header_lines + 1, columns, n, &mut out)?;
     if out.len() < n {
-        return Err(GgsError::in_file(
-            path,
-            format!(
-                "truncated: the header declares {n} points, the file holds {}",
-                out.len()
-            ),
-        ));
+        return Err(truncated(path, n, out.len()));
     }
     Ok(out)
+}
+
+/// [`read_ascii`] streamed from `r` (positioned at the data, byte `h.data_start`) a few MB
+/// at a time ([`crate::io::text::TextChunks`]); nothing after the `n`-th point is read.
+fn read_ascii_streamed<S: PointStore, R: std::io::Read>(
+    path: &Path,
+    r: R,
+    h: &PcdHeader,
+    file_len: Option<u64>,
+) -> Result<S::Out> {
+    let remaining = file_len.map(|l| l.saturating_sub(h.data_start as u64));
+    let mut chunks =
+        crate::io::text::TextChunks::new(r, h.data_start as u64, h.lines + 1, remaining);
+    let columns = ascii_columns(&h.fields, &h.xyz);
+    let reserve = remaining.map_or(1 << 20, |l| (l / 6) as usize);
+    let mut out = S::with_capacity(h.n.min(reserve));
+    let (mut got, mut part) = (0, Vec::new());
+    while got < h.n {
+        let Some(chunk) = chunks.next_chunk(path)? else {
+            return Err(truncated(path, h.n, got));
+        };
+        part.clear();
+        ascii_rows(path, chunk.bytes, chunk.line, columns, h.n - got, &mut part)?;
+        got += part.len();
+        out.extend_from(&part);
+    }
+    Ok(out.finish())
 }
 
 /// PCL writes `nan` in ascii files; Rust parses it too, and also `NaN`.
