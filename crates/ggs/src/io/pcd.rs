@@ -773,6 +773,41 @@ mod error_paths {
         read_pcd(path, &mut std::io::Cursor::new(b), Some(b.len() as u64))
     }
 
+    proptest::proptest! {
+        /// The streamed ascii reader reads what the in-memory parser reads, and fails with
+        /// the same error, on ascii bodies with blank and CRLF lines, a declared count off by
+        /// a little, and a few bytes replaced by junk.
+        #[test]
+        fn streamed_and_whole_ascii_reads_agree(
+            rows in proptest::collection::vec((-1e3f64..1e3, -1e3f64..1e3, -1e3f64..1e3), 0..60),
+            extra in 0usize..3,
+            fewer in 0usize..3,
+            junk in proptest::collection::vec((0usize..4000, proptest::sample::select(
+                vec![&b"x"[..], b"\xff", b"\r", b"\n", b"\n\n", b" ", b"\x0b", b"1e", b"nan", b"\xc2\xa0"])), 0..3),
+        ) {
+            let mut body = String::new();
+            for (i, (x, y, z)) in rows.iter().enumerate() {
+                body.push_str(&format!("{x} {y} {z}{}", if i % 5 == 0 { "\r\n\n" } else { "\n" }));
+            }
+            let n = (rows.len() + extra).saturating_sub(fewer);
+            let mut b = pcd("ascii", n, body.as_bytes());
+            let start = b.len() - body.len();
+            for (at, j) in junk {
+                if body.is_empty() {
+                    break;
+                }
+                let at = start + at % body.len();
+                b.splice(at..at + 1, j.iter().copied());
+            }
+            let path = Path::new("p.pcd");
+            match (streamed(path, &b), parse_pcd(path, &b)) {
+                (Ok(a), Ok(w)) => proptest::prop_assert_eq!(a, w),
+                (Err(a), Err(w)) => proptest::prop_assert_eq!(a.to_string(), w.to_string()),
+                (a, w) => proptest::prop_assert!(false, "{:?} against {:?}", a, w),
+            }
+        }
+    }
+
     error_cases! { streamed;
         no_data_line: b"VERSION 0.7\nFIELDS x y z\n" => Line(3), "DATA";
         count_not_an_integer: header("FIELDS x y z\nSIZE 4 4 four\n") => Line(2), "'four' is not a non-negative integer (SIZE)";

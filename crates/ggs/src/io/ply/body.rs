@@ -195,27 +195,29 @@ fn read_vertex_rows(
     xyz: &[usize],
 ) -> Result<Vec<Point>> {
     let (first_line, start) = (rows.line, rows.pos.min(rows.text.len()));
-    let mut end = start;
-    for k in 0..el.count {
-        let (_, at, raw) = rows
-            .next_row()
-            .ok_or_else(|| RowCursor::truncated(path, el, k))?;
-        end = at + raw.len();
+    let (mut end, mut k) = (start, 0);
+    while k < el.count {
+        let Some((_, at, raw)) = rows.next_row() else {
+            break;
+        };
+        (end, k) = (at + raw.len(), k + 1);
     }
     let props = el.props.len();
-    parse_lines(
-        &rows.text[start..end],
-        h.lines + first_line + 1,
-        |line_no, raw| {
-            if raw.iter().all(|&b| ASCII_SPACE.has(b)) {
-                return Ok(None);
-            }
-            match fast_row(raw, props, xyz) {
-                Some(p) => Ok(Some(p)),
-                None => ascii_row(path, line_no, raw, el, xyz, None).map(Some),
-            }
-        },
-    )
+    let body = &rows.text[start..end];
+    let points = parse_lines(body, h.lines + first_line + 1, |line_no, raw| {
+        if raw.iter().all(|&b| ASCII_SPACE.has(b)) {
+            return Ok(None);
+        }
+        match fast_row(raw, props, xyz) {
+            Some(p) => Ok(Some(p)),
+            None => ascii_row(path, line_no, raw, el, xyz, None).map(Some),
+        }
+    })?;
+    // A bad row before the end is reported first, as a reader going row by row finds it.
+    if k < el.count {
+        return Err(RowCursor::truncated(path, el, k));
+    }
+    Ok(points)
 }
 
 /// The vertex rows of an ascii PLY streamed from `r` (positioned at the body, byte
@@ -240,7 +242,13 @@ pub(super) fn read_ascii_streamed<S: PointStore, R: std::io::Read>(
     // The element being read and the rows of it read so far.
     let (mut ei, mut k) = (0, 0);
     let props = vertex.props.len();
-    while ei < vi || k < vertex.count {
+    loop {
+        while ei < vi && k == h.elements[ei].count {
+            (ei, k) = (ei + 1, 0);
+        }
+        if ei == vi && k == vertex.count {
+            break;
+        }
         let Some(chunk) = chunks.next_chunk(path)? else {
             return Err(RowCursor::truncated(path, &h.elements[ei], k));
         };

@@ -495,6 +495,47 @@ mod error_paths {
         parse_ply_mesh(path, b)
     }
 
+    proptest::proptest! {
+        /// The streamed ascii reader (rows in chunks, `io::text`) reads what the in-memory
+        /// parser reads, and fails with the same error, on ascii bodies with an element
+        /// before `vertex`, blank and CRLF lines and a few bytes replaced by junk.
+        #[test]
+        fn streamed_and_whole_ascii_reads_agree(
+            rows in proptest::collection::vec((-1e3f64..1e3, -1e3f64..1e3, -1e3f64..1e3), 0..60),
+            pre in 0usize..4,
+            junk in proptest::collection::vec((0usize..4000, proptest::sample::select(
+                vec![&b"x"[..], b"\xff", b"\r", b"\n", b"\n\n", b" ", b"\t", b"1e", b"-", b"nan", b"\xc2\xa0"])), 0..3),
+        ) {
+            let mut body = String::new();
+            for k in 0..pre {
+                body.push_str(&format!("{k} 7\n"));
+            }
+            for (i, (x, y, z)) in rows.iter().enumerate() {
+                body.push_str(&format!("{x} {y} {z} {i}{}", if i % 5 == 0 { "\r\n\n" } else { "\n" }));
+            }
+            let header = format!(
+                "element pre {pre}\nproperty int a\nproperty int b\nelement vertex {}\n{XYZ}property int i\n",
+                rows.len()
+            );
+            let mut b = ascii(&header, &body);
+            let start = b.len() - body.len();
+            for (at, j) in junk {
+                if body.is_empty() {
+                    break;
+                }
+                let at = start + at % body.len();
+                b.splice(at..at + 1, j.iter().copied());
+            }
+            let path = Path::new("p.ply");
+            let (a, w) = (streamed(path, &b), parse_ply(path, &b));
+            match (a, w) {
+                (Ok(a), Ok(w)) => proptest::prop_assert_eq!(a, w),
+                (Err(a), Err(w)) => proptest::prop_assert_eq!(a.to_string(), w.to_string()),
+                (a, w) => proptest::prop_assert!(false, "{:?} against {:?}", a, w),
+            }
+        }
+    }
+
     error_cases! { streamed;
         header_without_end: b"ply\nformat ascii 1.0\nelement vertex 1\n" => Line(4), "end_header";
         not_ply: b"plx\nformat ascii 1.0\nend_header\n" => Line(1), "expected 'ply'";
