@@ -24,6 +24,21 @@ macro_rules! error_cases {
     };
 }
 
+/// `bytes` with the bytes at positions `start + at % (len − start)` replaced by the junk,
+/// for tests that compare two readers on damaged files.
+#[cfg(test)]
+pub(crate) fn with_junk(mut bytes: Vec<u8>, start: usize, junk: &[(usize, &[u8])]) -> Vec<u8> {
+    for &(at, j) in junk {
+        let body = bytes.len() - start;
+        if body == 0 {
+            break;
+        }
+        let at = start + at % body;
+        bytes.splice(at..at + 1, j.iter().copied());
+    }
+    bytes
+}
+
 /// The assertion behind `error_cases!`.
 #[cfg(test)]
 pub(crate) fn check_error<T: std::fmt::Debug>(

@@ -790,15 +790,9 @@ mod error_paths {
                 body.push_str(&format!("{x} {y} {z}{}", if i % 5 == 0 { "\r\n\n" } else { "\n" }));
             }
             let n = (rows.len() + extra).saturating_sub(fewer);
-            let mut b = pcd("ascii", n, body.as_bytes());
+            let b = pcd("ascii", n, body.as_bytes());
             let start = b.len() - body.len();
-            for (at, j) in junk {
-                if body.is_empty() {
-                    break;
-                }
-                let at = start + at % body.len();
-                b.splice(at..at + 1, j.iter().copied());
-            }
+            let b = crate::io::with_junk(b, start, &junk);
             let path = Path::new("p.pcd");
             match (streamed(path, &b), parse_pcd(path, &b)) {
                 (Ok(a), Ok(w)) => proptest::prop_assert_eq!(a, w),

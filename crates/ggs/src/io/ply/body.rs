@@ -184,6 +184,28 @@ pub(super) fn read_ascii(
     Ok(out)
 }
 
+/// The points of the lines of `body` (the first is line `first_line` of the file): vertex
+/// rows of `el`, blank lines skipped, read in parallel pieces ([`parse_lines`]), each row in
+/// stride where it can be ([`fast_row`]), else by [`ascii_row`].
+fn vertex_lines(
+    path: &Path,
+    body: &[u8],
+    first_line: usize,
+    el: &Element,
+    xyz: &[usize],
+) -> Result<Vec<Point>> {
+    let props = el.props.len();
+    parse_lines(body, first_line, |line_no, raw| {
+        if raw.iter().all(|&b| ASCII_SPACE.has(b)) {
+            return Ok(None);
+        }
+        match fast_row(raw, props, xyz) {
+            Some(p) => Ok(Some(p)),
+            None => ascii_row(path, line_no, raw, el, xyz, None).map(Some),
+        }
+    })
+}
+
 /// The rows of the vertex element `el` (scalar properties only) from where `rows` stands:
 /// found line by line, then read in chunks on the thread pool ([`parse_lines`]), each row in
 /// stride where it can be ([`fast_row`]), else by [`ascii_row`].
@@ -202,17 +224,13 @@ fn read_vertex_rows(
         };
         (end, k) = (at + raw.len(), k + 1);
     }
-    let props = el.props.len();
-    let body = &rows.text[start..end];
-    let points = parse_lines(body, h.lines + first_line + 1, |line_no, raw| {
-        if raw.iter().all(|&b| ASCII_SPACE.has(b)) {
-            return Ok(None);
-        }
-        match fast_row(raw, props, xyz) {
-            Some(p) => Ok(Some(p)),
-            None => ascii_row(path, line_no, raw, el, xyz, None).map(Some),
-        }
-    })?;
+    let points = vertex_lines(
+        path,
+        &rows.text[start..end],
+        h.lines + first_line + 1,
+        el,
+        xyz,
+    )?;
     // A bad row before the end is reported first, as a reader going row by row finds it.
     if k < el.count {
         return Err(RowCursor::truncated(path, el, k));
@@ -241,7 +259,6 @@ pub(super) fn read_ascii_streamed<S: PointStore, R: std::io::Read>(
     let mut out = S::with_capacity(vertex.count.min(reserve));
     // The element being read and the rows of it read so far.
     let (mut ei, mut k) = (0, 0);
-    let props = vertex.props.len();
     loop {
         while ei < vi && k == h.elements[ei].count {
             (ei, k) = (ei + 1, 0);
@@ -277,15 +294,7 @@ pub(super) fn read_ascii_streamed<S: PointStore, R: std::io::Read>(
             };
             (end, k) = (at + raw.len(), k + 1);
         }
-        let points = parse_lines(&chunk.bytes[start..end], first_line, |line_no, raw| {
-            if raw.iter().all(|&b| ASCII_SPACE.has(b)) {
-                return Ok(None);
-            }
-            match fast_row(raw, props, xyz) {
-                Some(p) => Ok(Some(p)),
-                None => ascii_row(path, line_no, raw, vertex, xyz, None).map(Some),
-            }
-        })?;
+        let points = vertex_lines(path, &chunk.bytes[start..end], first_line, vertex, xyz)?;
         out.extend_from(&points);
     }
     Ok(out.finish())

@@ -517,15 +517,9 @@ mod error_paths {
                 "element pre {pre}\nproperty int a\nproperty int b\nelement vertex {}\n{XYZ}property int i\n",
                 rows.len()
             );
-            let mut b = ascii(&header, &body);
+            let b = ascii(&header, &body);
             let start = b.len() - body.len();
-            for (at, j) in junk {
-                if body.is_empty() {
-                    break;
-                }
-                let at = start + at % body.len();
-                b.splice(at..at + 1, j.iter().copied());
-            }
+            let b = crate::io::with_junk(b, start, &junk);
             let path = Path::new("p.ply");
             let (a, w) = (streamed(path, &b), parse_ply(path, &b));
             match (a, w) {
