@@ -23,7 +23,7 @@ ROOT = Path(__file__).resolve().parent.parent
 
 # Bottom to top; the README's architecture section lists the same layers.
 LAYERS = [
-    ["error", "threads", "simd", "rng", "memory", "order"],
+    ["error", "threads", "simd", "rng", "memory", "order", "num"],
     ["transform", "cloud", "spacing", "thin", "mesh", "test_rng"],
     ["io", "rotations"],
     ["coarse", "refine"],

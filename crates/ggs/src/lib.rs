@@ -31,6 +31,7 @@ pub mod io;
 pub mod memory;
 pub mod mesh;
 pub mod metrics;
+pub mod num;
 pub mod order;
 pub mod pipeline;
 pub mod refine;

@@ -12,6 +12,7 @@
 //! point is a candidate, so the rounds end.
 
 use crate::cloud::{Point, PointAccess};
+use crate::num::floor_i64;
 use rayon::prelude::*;
 use rustc_hash::FxHashMap;
 
@@ -69,9 +70,9 @@ pub fn point_spacing<P: PointAccess + ?Sized>(points: &P) -> f64 {
 #[inline]
 fn cell(p: &Point, h: f64) -> [i64; 3] {
     [
-        (p[0] / h).floor() as i64,
-        (p[1] / h).floor() as i64,
-        (p[2] / h).floor() as i64,
+        floor_i64(p[0] / h),
+        floor_i64(p[1] / h),
+        floor_i64(p[2] / h),
     ]
 }
 

@@ -24,7 +24,7 @@ pub fn cell_centroids<P: PointAccess + ?Sized>(points: &P, cell: f64) -> Vec<Poi
         }
     }
     let key = |p: &[f64; 3]| -> [u64; 3] {
-        std::array::from_fn(|d| ((p[d] - min[d]) / cell).floor().max(0.0) as u64)
+        std::array::from_fn(|d| crate::num::floor_u64((p[d] - min[d]) / cell))
     };
     // Usually the cell triple and the index fit one u64 together (x, y, z, index from the top
     // bits down: the same order as (triple, index)), 8 bytes a point; else a u64 key for

@@ -33,13 +33,7 @@ pub const KNN_CELL_FACTOR: f64 = 1.6;
 /// to 64 cells per point, or this many cells (256 kB) for small clouds.
 const DENSE_CELLS: u64 = 1 << 16;
 
-/// `⌊x⌋` as an integer, inline (`f64::floor` is a libm call on baseline x86-64); saturates
-/// for values beyond ±2^63, NaN gives 0.
-#[inline]
-fn floor_i64(x: f64) -> i64 {
-    let t = x as i64;
-    t - ((t as f64) > x) as i64
-}
+use crate::num::floor_i64;
 
 /// Point indices in the order of (key, index), and for every key `k < cells` the number of
 /// points with a smaller key (`cells + 1` entries): a counting sort, O(points + cells).

@@ -20,7 +20,7 @@ pub fn dedup_geodesic(rotations: &[Matrix3<f64>], tol_deg: f64) -> Vec<usize> {
     let d = max_sq.sqrt() * (1.0 + 1e-9);
     let cell = 2.0 * d;
     let diagonal = |r: &Matrix3<f64>| [r[(0, 0)], r[(1, 1)], r[(2, 2)]];
-    let key = |v: [f64; 3]| v.map(|x| (x / cell).floor() as i64);
+    let key = |v: [f64; 3]| v.map(|x| crate::num::floor_i64(x / cell));
     let mut buckets: rustc_hash::FxHashMap<[i64; 3], Vec<usize>> = Default::default();
     let mut kept: Vec<usize> = Vec::new();
     for (i, r) in rotations.iter().enumerate() {
