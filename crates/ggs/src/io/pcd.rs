@@ -392,20 +392,10 @@ fn ascii_rows(
         if line.trim().is_empty() {
             continue;
         }
+        // PCL writes `nan` in ascii files; `str::parse` takes it, and `NaN` too.
         let toks: Vec<&str> = line.split_ascii_whitespace().collect();
-        let mut p = [0.0; 3];
-        for d in 0..3 {
-            let tok = toks.get(cols[d]).ok_or_else(|| {
-                GgsError::at_line(
-                    path,
-                    line_no,
-                    format!("expected {t} values, found {}", toks.len()),
-                )
-            })?;
-            p[d] = parse_pcd_number(tok).ok_or_else(|| {
-                GgsError::at_line(path, line_no, format!("'{tok}' is not a number"))
-            })?;
-        }
+        let expected = |_, n: usize| format!("expected {t} values, found {n}");
+        let p = crate::io::text::token_columns(path, line_no, &toks, &cols, expected)?;
         out.push(p);
     }
     Ok(())
@@ -462,11 +452,6 @@ fn read_ascii_streamed<S: PointStore, R: std::io::Read>(
         out.extend_from(&part);
     }
     Ok(out.finish())
-}
-
-/// PCL writes `nan` in ascii files; Rust parses it too, and also `NaN`.
-fn parse_pcd_number(t: &str) -> Option<f64> {
-    t.parse::<f64>().ok()
 }
 
 fn read_binary(

@@ -246,6 +246,28 @@ pub fn xyz_columns(line: &[u8], cols: &[usize; 3], delim: &'static Delims) -> Op
     Some(p)
 }
 
+/// The values at columns `cols` (x, y, z) of a line's tokens `toks` (line `line_no` of
+/// `path`), parsed by `str::parse`; a missing column is an error saying `expected` (given
+/// the column's index and the token count), a word that is not a number an error naming it.
+pub fn token_columns(
+    path: &std::path::Path,
+    line_no: usize,
+    toks: &[&str],
+    cols: &[usize; 3],
+    expected: impl Fn(usize, usize) -> String,
+) -> Result<Point> {
+    let mut p = [0.0; 3];
+    for d in 0..3 {
+        let tok = toks.get(cols[d]).ok_or_else(|| {
+            crate::GgsError::at_line(path, line_no, expected(cols[d], toks.len()))
+        })?;
+        p[d] = tok.parse::<f64>().map_err(|_| {
+            crate::GgsError::at_line(path, line_no, format!("'{tok}' is not a number"))
+        })?;
+    }
+    Ok(p)
+}
+
 /// The points of the lines of `body`, the first of which is line `first_line` of the file
 /// (1-based): `row(line_no, line)` reads one line (`Ok(None)`: a line to skip). In file
 /// order; the error is the one of the earliest failing line. Bodies over [`CHUNK_BYTES`]

@@ -143,24 +143,9 @@ fn data_line(path: &Path, line_no: usize, t: &str, cols: &[usize; 3]) -> Result<
         return Ok(None);
     }
     let toks: Vec<&str> = split(t).collect();
-    let mut p = [0.0; 3];
-    for d in 0..3 {
-        let tok = toks.get(cols[d]).ok_or_else(|| {
-            GgsError::at_line(
-                path,
-                line_no,
-                format!(
-                    "expected at least {} values, found {}",
-                    cols[d] + 1,
-                    toks.len()
-                ),
-            )
-        })?;
-        p[d] = tok
-            .parse::<f64>()
-            .map_err(|_| GgsError::at_line(path, line_no, format!("'{tok}' is not a number")))?;
-    }
-    Ok(Some(p))
+    let expected =
+        |col: usize, n: usize| format!("expected at least {} values, found {n}", col + 1);
+    crate::io::text::token_columns(path, line_no, &toks, cols, expected).map(Some)
 }
 
 #[cfg(test)]
@@ -199,10 +184,8 @@ mod tests {
     #[test]
     fn comments_blank_lines_and_crlf_between_points_with_named_columns() {
         let s = "id;x;y;z\r\n# 1;2;3;4\r\n\r\n7;1;2;3\r\n  // 5 6 7 8\n8 ,4, 5 ,6\n";
-        assert_eq!(
-            parse_xyz(Path::new(P), s.as_bytes()).unwrap(),
-            vec![[1.0, 2.0, 3.0], [4.0, 5.0, 6.0]]
-        );
+        let points = parse_xyz(Path::new(P), s.as_bytes()).unwrap();
+        assert_eq!(points, [[1.0, 2.0, 3.0], [4.0, 5.0, 6.0]]);
     }
 
     /// A body large enough to be read in several chunks reads as the lines say, and an error
