@@ -90,13 +90,6 @@ impl<'a> Row<'a> {
         Row { line, at: 0, delim }
     }
 
-    /// Whether only delimiters remain.
-    #[inline]
-    pub fn at_end(&mut self) -> bool {
-        self.skip_delims();
-        self.at == self.line.len()
-    }
-
     /// What is left of the line after the values read so far.
     pub fn rest(&self) -> &'a [u8] {
         &self.line[self.at..]
@@ -226,21 +219,15 @@ pub fn xyz_columns(line: &[u8], cols: &[usize; 3], delim: &'static Delims) -> Op
     let mut p = [0.0; 3];
     let last = cols[0].max(cols[1]).max(cols[2]);
     for c in 0..=last {
-        match cols.iter().position(|&w| w == c) {
-            Some(d) => {
-                p[d] = row.number()?;
-                // A column named twice (never from a header) takes the same value.
-                for e in d + 1..3 {
-                    if cols[e] == c {
-                        p[e] = p[d];
-                    }
-                }
+        if !cols.contains(&c) {
+            if !row.skip() {
+                return None;
             }
-            None => {
-                if !row.skip() {
-                    return None;
-                }
-            }
+            continue;
+        }
+        let v = row.number()?;
+        for d in (0..3).filter(|&d| cols[d] == c) {
+            p[d] = v;
         }
     }
     Some(p)
@@ -455,7 +442,7 @@ mod tests {
         assert!(r.number().unwrap().is_nan());
         assert_eq!(r.number(), None);
         let mut r = Row::new(b"1 2", &ASCII_SPACE);
-        assert!(r.skip() && r.number() == Some(2.0) && r.at_end() && !r.skip());
+        assert!(r.skip() && r.number() == Some(2.0) && !r.skip() && r.rest().is_empty());
         assert_eq!(
             xyz_columns(b"9,3;2 1", &[3, 2, 1], &SPACE_COMMA_SEMICOLON),
             Some([1.0, 2.0, 3.0])
@@ -509,8 +496,7 @@ mod tests {
     }
 
     fn xyz_row(_: usize, l: &[u8]) -> Result<Option<Point>> {
-        let mut r = Row::new(l, &ASCII_SPACE);
-        if r.at_end() {
+        if l.iter().all(|&b| ASCII_SPACE.has(b)) {
             return Ok(None);
         }
         match xyz_columns(l, &[0, 1, 2], &ASCII_SPACE) {

@@ -87,15 +87,14 @@ pub fn read_xyz_into<S: PointStore, R: std::io::Read>(
 /// three columns), or the first point. `Some((byte, line, columns))`: where the points
 /// start; `None` when `text` holds no meaningful line.
 fn header(path: &Path, text: &str, line0: usize) -> Result<Option<(usize, usize, [usize; 3])>> {
-    let bytes = text.as_bytes();
-    for (i, raw) in crate::io::text::lines(bytes) {
+    for (i, line) in text.split('\n').enumerate() {
         let line_no = line0 + i;
-        let t = line_text(text, raw).trim();
+        let t = line.trim();
         if skipped(t) {
             continue;
         }
-        let at = raw.as_ptr() as usize - bytes.as_ptr() as usize;
-        let after = (at + raw.len() + 1).min(bytes.len());
+        let at = line.as_ptr() as usize - text.as_ptr() as usize;
+        let after = (at + line.len() + 1).min(text.len());
         let toks: Vec<&str> = split(t).collect();
         if toks.len() == 1 && toks[0].parse::<u64>().is_ok() {
             return Ok(Some((after, line_no + 1, [0, 1, 2]))); // .pts point count
@@ -121,14 +120,6 @@ fn header(path: &Path, text: &str, line0: usize) -> Result<Option<(usize, usize,
         return Ok(Some((after, line_no + 1, [0, 1, 2])));
     }
     Ok(None)
-}
-
-/// The text of a line of `text` given as bytes (a trailing `\r` dropped, as `str::lines`
-/// does).
-fn line_text<'a>(text: &'a str, raw: &[u8]) -> &'a str {
-    let at = raw.as_ptr() as usize - text.as_ptr() as usize;
-    let line = &text[at..at + raw.len()];
-    line.strip_suffix('\r').unwrap_or(line)
 }
 
 /// Whether a trimmed line holds no point: blank, or a `#` or `//` comment.

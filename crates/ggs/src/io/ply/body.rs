@@ -114,6 +114,21 @@ impl<'a> RowCursor<'a> {
         None
     }
 
+    /// Step over up to `n` rows: the byte span from where the cursor stood to the end of the
+    /// last row taken (blank lines before it included), and how many rows were taken (fewer
+    /// than `n` at the end of the text).
+    fn span(&mut self, n: usize) -> (std::ops::Range<usize>, usize) {
+        let start = self.pos.min(self.text.len());
+        let (mut end, mut taken) = (start, 0);
+        while taken < n {
+            let Some((_, at, raw)) = self.next_row() else {
+                break;
+            };
+            (end, taken) = (at + raw.len(), taken + 1);
+        }
+        (start..end, taken)
+    }
+
     /// The `k`-th row of `el` is missing.
     fn truncated(path: &Path, el: &Element, k: usize) -> GgsError {
         GgsError::in_file(
@@ -160,8 +175,7 @@ pub(super) fn read_ascii(
     let last = faces.as_ref().map_or(vi, |f| f.element.max(vi));
     for (ei, el) in h.elements.iter().enumerate().take(last + 1) {
         let collect_faces = faces.as_ref().is_some_and(|f| f.element == ei);
-        let scalars = el.props.iter().all(|p| matches!(p, Property::Scalar(..)));
-        if ei == vi && scalars && !collect_faces {
+        if ei == vi && el.scalars_only() && !collect_faces {
             out = read_vertex_rows(path, h, &mut rows, el, xyz)?;
             continue;
         }
@@ -216,21 +230,9 @@ fn read_vertex_rows(
     el: &Element,
     xyz: &[usize],
 ) -> Result<Vec<Point>> {
-    let (first_line, start) = (rows.line, rows.pos.min(rows.text.len()));
-    let (mut end, mut k) = (start, 0);
-    while k < el.count {
-        let Some((_, at, raw)) = rows.next_row() else {
-            break;
-        };
-        (end, k) = (at + raw.len(), k + 1);
-    }
-    let points = vertex_lines(
-        path,
-        &rows.text[start..end],
-        h.lines + first_line + 1,
-        el,
-        xyz,
-    )?;
+    let first_line = rows.line;
+    let (span, k) = rows.span(el.count);
+    let points = vertex_lines(path, &rows.text[span], h.lines + first_line + 1, el, xyz)?;
     // A bad row before the end is reported first, as a reader going row by row finds it.
     if k < el.count {
         return Err(RowCursor::truncated(path, el, k));
@@ -274,27 +276,22 @@ pub(super) fn read_ascii_streamed<S: PointStore, R: std::io::Read>(
             pos: 0,
             line: 0,
         };
+        // The rows of the elements before `vertex`, skipped.
         while ei < vi {
-            if k == h.elements[ei].count {
-                (ei, k) = (ei + 1, 0);
-            } else if rows.next_row().is_some() {
-                k += 1;
-            } else {
+            let (_, taken) = rows.span(h.elements[ei].count - k);
+            k += taken;
+            if k < h.elements[ei].count {
                 break;
             }
+            (ei, k) = (ei + 1, 0);
         }
         if ei < vi {
             continue;
         }
-        let (first_line, start) = (chunk.line + rows.line, rows.pos.min(chunk.bytes.len()));
-        let mut end = start;
-        while k < vertex.count {
-            let Some((_, at, raw)) = rows.next_row() else {
-                break;
-            };
-            (end, k) = (at + raw.len(), k + 1);
-        }
-        let points = vertex_lines(path, &chunk.bytes[start..end], first_line, vertex, xyz)?;
+        let first_line = chunk.line + rows.line;
+        let (span, taken) = rows.span(vertex.count - k);
+        k += taken;
+        let points = vertex_lines(path, &chunk.bytes[span], first_line, vertex, xyz)?;
         out.extend_from(&points);
     }
     Ok(out.finish())

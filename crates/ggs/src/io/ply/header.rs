@@ -81,6 +81,13 @@ pub(super) struct Element {
     pub(super) props: Vec<Property>,
 }
 
+impl Element {
+    /// Whether every property is a scalar (no list): rows of a fixed number of values.
+    pub(super) fn scalars_only(&self) -> bool {
+        self.props.iter().all(|p| matches!(p, Property::Scalar(..)))
+    }
+}
+
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(super) enum Encoding {
     Ascii,

@@ -65,8 +65,7 @@ fn read_ply_chunked<S: PointStore, R: BufRead + Send>(
             })
             .sum()
     };
-    let scalars = |e: &Element| e.props.iter().all(|p| matches!(p, Property::Scalar(..)));
-    if h.encoding == Encoding::Ascii && scalars(&h.elements[vi]) {
+    if h.encoding == Encoding::Ascii && h.elements[vi].scalars_only() {
         let xyz = xyz_properties(path, &h, vi)?;
         return read_ascii_streamed::<S, _>(path, r, &h, vi, &xyz, file_len);
     }
