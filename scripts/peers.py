@@ -99,6 +99,7 @@ def open3d_methods(threads):
         return down, fpfh
 
     def ransac(src, tgt, voxel):
+        """The RANSAC transform and both clouds downsampled at `voxel` (its inputs)."""
         s, sf = features(src, voxel)
         t, tf = features(tgt, voxel)
         d = 1.5 * voxel
@@ -107,15 +108,15 @@ def open3d_methods(threads):
             [reg.CorrespondenceCheckerBasedOnEdgeLength(0.9), reg.CorrespondenceCheckerBasedOnDistance(d)],
             reg.RANSACConvergenceCriteria(100000, 0.999),
         )
-        return r.transformation
+        return r.transformation, s, t
 
-    def with_open3d_gicp(src_path, tgt_path, voxel, cell=None):
-        """RANSAC, then GICP on the clouds as read (`cell` None) or downsampled at `cell`."""
+    def with_open3d_gicp(src_path, tgt_path, voxel, downsampled=False):
+        """RANSAC, then GICP on the clouds as read or on RANSAC's clouds downsampled at V."""
         src, tgt = read(src_path), read(tgt_path)
         t0 = time.perf_counter()
-        init = ransac(src, tgt, voxel)
-        if cell is not None:
-            src, tgt = src.voxel_down_sample(cell), tgt.voxel_down_sample(cell)
+        init, src_down, tgt_down = ransac(src, tgt, voxel)
+        if downsampled:
+            src, tgt = src_down, tgt_down
         for pc in (src, tgt):
             pc.estimate_covariances(o3d.geometry.KDTreeSearchParamKNN(20))
         r = reg.registration_generalized_icp(src, tgt, voxel, init)
@@ -123,7 +124,7 @@ def open3d_methods(threads):
 
     methods = {
         "open3d": with_open3d_gicp,
-        "open3d, GICP at V": lambda s, t, v: with_open3d_gicp(s, t, v, cell=v),
+        "open3d, GICP at V": lambda s, t, v: with_open3d_gicp(s, t, v, downsampled=True),
     }
     try:
         import small_gicp
@@ -134,7 +135,7 @@ def open3d_methods(threads):
     def with_small_gicp(src_path, tgt_path, voxel):
         src, tgt = read(src_path), read(tgt_path)
         t0 = time.perf_counter()
-        init = ransac(src, tgt, voxel)
+        init, _, _ = ransac(src, tgt, voxel)
         r = small_gicp.align(
             np.asarray(tgt.points), np.asarray(src.points), init_T_target_source=init,
             downsampling_resolution=voxel / 2, max_correspondence_distance=voxel, num_threads=threads,
