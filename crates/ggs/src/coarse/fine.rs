@@ -72,7 +72,7 @@ impl<'p> FineLevel<'p> {
         loop {
             let wanted = match &coarse {
                 None => (0..n).collect::<Vec<_>>(),
-                Some(level) => kept_with_neighbours(level, keep, set),
+                Some(level) => kept_with_neighbours(ctl.pool, level, keep, set),
             };
             let new: Vec<usize> = wanted.into_iter().filter(|&k| !self.scored[k]).collect();
             self.extend_boxes(ctl, &new)?;

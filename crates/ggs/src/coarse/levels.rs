@@ -125,30 +125,35 @@ impl LevelFrame {
 
 /// The `keep` best rotations of the coarse order and every rotation within
 /// `neighbour_deg` of one of them, in increasing index order. A keep of a quarter of the set
-/// or more takes the whole set.
+/// or more takes the whole set. The rotations are tested in parallel on `pool` (each on its
+/// own), so the list does not depend on the thread count.
 pub(super) fn kept_with_neighbours(
+    pool: &rayon::ThreadPool,
     level: &CoarseLevel,
     keep: usize,
     set: &RotationSet,
 ) -> Vec<usize> {
+    use rayon::prelude::*;
     let n = level.order().len();
     if keep * 4 >= n {
         return (0..n).collect();
     }
     let kept = &level.order()[..keep];
-    let mut selected = vec![false; n];
+    let mut is_kept = vec![false; n];
     for &k in kept {
-        selected[k] = true;
+        is_kept[k] = true;
     }
     let within = WithinDeg::new(level.neighbour_deg);
-    for k in 0..n {
-        if !selected[k]
-            && kept
-                .iter()
-                .any(|&j| within.holds(&set.matrices[j], &set.matrices[k]))
-        {
-            selected[k] = true;
-        }
-    }
+    let selected: Vec<bool> = pool.install(|| {
+        (0..n)
+            .into_par_iter()
+            .map(|k| {
+                is_kept[k]
+                    || kept
+                        .iter()
+                        .any(|&j| within.holds(&set.matrices[j], &set.matrices[k]))
+            })
+            .collect()
+    });
     (0..n).filter(|&k| selected[k]).collect()
 }

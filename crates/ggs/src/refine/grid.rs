@@ -271,7 +271,7 @@ impl CellGrid {
     /// run, since those cells' keys are consecutive. Found through whichever table the grid
     /// keeps: the dense one (two entries), the column one (a walk along the column) or the
     /// hash (a probe per cell).
-    #[inline]
+    #[inline(always)]
     fn column_run(&self, i: i64, j: i64, k0: i64, k1: i64) -> std::ops::Range<usize> {
         let key = |k: i64| self.key(&[i as u64, j as u64, k as u64]) as usize;
         if let Some(dense) = &self.dense {
