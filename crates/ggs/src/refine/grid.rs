@@ -18,6 +18,7 @@
 
 use super::neighbors::PointIndex;
 use crate::cloud::Point;
+use crate::num::floor_i64;
 use rayon::prelude::*;
 
 /// At most this many cells per axis (so a linear cell key fits 60 bits).
@@ -32,8 +33,6 @@ pub const KNN_CELL_FACTOR: f64 = 1.6;
 /// Dense cell tables (a start offset for every cell of the box, empty or not) are kept up
 /// to 64 cells per point, or this many cells (256 kB) for small clouds.
 const DENSE_CELLS: u64 = 1 << 16;
-
-use crate::num::floor_i64;
 
 /// Point indices in the order of (key, index), and for every key `k < cells` the number of
 /// points with a smaller key (`cells + 1` entries): a counting sort, O(points + cells).
