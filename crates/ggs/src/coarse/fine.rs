@@ -74,17 +74,8 @@ impl<'p> FineLevel<'p> {
                 None => (0..n).collect::<Vec<_>>(),
                 Some(level) => kept_with_neighbours(ctl.pool, level, keep, set),
             };
-            let new: Vec<usize> = wanted.into_iter().filter(|&k| !self.scored[k]).collect();
-            self.extend_boxes(ctl, &new)?;
-            self.plan(backend, cfg.precision)?;
-            self.score(ctl, cfg.precision, &new, tally)?;
-            let quiet = PassControl {
-                progress: None,
-                ..*ctl
-            };
-            let w = self
-                .exact_best(&quiet, |_| true, tally)?
-                .ok_or_else(|| GgsError::param("rotations", "no rotation was scored"))?;
+            self.score_unscored(backend, ctl, cfg.precision, wanted, tally)?;
+            let w = self.winner(ctl, tally)?;
             if let Some(level) = coarse.as_deref_mut() {
                 level.rounds += 1;
                 level.kept = keep;
@@ -98,6 +89,51 @@ impl<'p> FineLevel<'p> {
             }
             return Ok(w);
         }
+    }
+
+    /// The first look: the `count` best rotations of the coarse order at the voxel size, no
+    /// neighbours, no further rounds. Returns the winner among them. A later
+    /// [`Self::rounds`] scores only the rotations this did not (a rotation's score depends on
+    /// nothing else), so the search's result after both is the one `rounds` alone gives.
+    pub(super) fn first_look(
+        &mut self,
+        backend: &dyn Backend,
+        ctl: &PassControl<'_>,
+        cfg: &SearchConfig,
+        coarse: &CoarseLevel,
+        count: usize,
+        tally: &mut Tally,
+    ) -> Result<usize> {
+        let count = count.clamp(1, coarse.order().len());
+        let mut wanted = coarse.order()[..count].to_vec();
+        wanted.sort_unstable();
+        self.score_unscored(backend, ctl, cfg.precision, wanted, tally)?;
+        self.winner(ctl, tally)
+    }
+
+    /// Extents, plan and scores of the rotations of `wanted` not scored yet.
+    fn score_unscored(
+        &mut self,
+        backend: &dyn Backend,
+        ctl: &PassControl<'_>,
+        precision: Precision,
+        wanted: Vec<usize>,
+        tally: &mut Tally,
+    ) -> Result<()> {
+        let new: Vec<usize> = wanted.into_iter().filter(|&k| !self.scored[k]).collect();
+        self.extend_boxes(ctl, &new)?;
+        self.plan(backend, precision)?;
+        self.score(ctl, precision, &new, tally)
+    }
+
+    /// The best scored rotation by exact score.
+    fn winner(&mut self, ctl: &PassControl<'_>, tally: &mut Tally) -> Result<usize> {
+        let quiet = PassControl {
+            progress: None,
+            ..*ctl
+        };
+        self.exact_best(&quiet, |_| true, tally)?
+            .ok_or_else(|| GgsError::param("rotations", "no rotation was scored"))
     }
 
     /// Exact extents of the rotations `new`.

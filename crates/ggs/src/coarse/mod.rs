@@ -55,6 +55,7 @@ pub mod selection;
 pub mod sized;
 pub mod source;
 pub mod sparse;
+mod staged;
 mod transpose;
 pub mod voxel;
 pub mod zaxis;
@@ -65,5 +66,6 @@ pub use config::{
 };
 pub use correlator::{Backend, Correlator, CpuBackend, Scores};
 pub use register::{coarse_register, coarse_register_with};
+pub use staged::{PreparedSearch, Search};
 pub use result::{CoarseLevel, Hypothesis, LevelHypothesis, SearchResult, SearchStats, Timings};
 pub use source::{representatives, MIN_POINTS_PER_REPRESENTATIVE, REPRESENTATIVE_DIVISIONS};

@@ -4,22 +4,20 @@
 //! transform").
 
 use super::config::{SearchConfig, SearchMode};
-use super::correlator::{Backend, CpuBackend, PassControl, RotatedSources};
-use super::extents::{rows, target_kernel, RotatedBox};
-use super::fine::FineLevel;
+use super::correlator::{Backend, CpuBackend, RotatedSources};
+use super::extents::{rows, RotatedBox};
 use super::geometry::Geometry;
-use super::levels::coarse_candidates;
 use super::memory_model::MemoryModel;
-use super::result::{SearchResult, Timings};
+use super::result::SearchResult;
 use super::rotated::RotatableCloud;
-use super::selection::Tally;
 use super::source::representatives;
+use super::staged::PreparedSearch;
 use super::voxel;
 use crate::cloud::{Cloud, Point};
 use crate::error::{GgsError, Result};
 use crate::memory;
 use crate::rotations::RotationSet;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 /// Milliseconds of `d`.
 pub(super) fn ms(d: Duration) -> f64 {
@@ -46,81 +44,14 @@ pub fn coarse_register_with(
     set: &RotationSet,
     cfg: &SearchConfig,
 ) -> Result<SearchResult> {
-    let t_start = Instant::now();
-    validate(source, target, set, cfg)?;
-    let threads = crate::threads::resolve(cfg.threads);
-    let (pool, _) = crate::threads::pool(threads)?;
-    let prep = Prepared::new(source, target, set, cfg, threads)?;
-    let ctl = PassControl {
-        pool: &pool,
-        threads,
-        cancel: cfg.cancel.as_ref(),
-        progress: None,
-    };
-    let mut tally = Tally::default();
-    let t_coarse = Instant::now();
-    let mut coarse_level = match &cfg.mode {
-        SearchMode::Exhaustive => None,
-        SearchMode::CoarseToFine(c) => {
-            let with_progress = PassControl {
-                progress: cfg.progress.as_deref(),
-                ..ctl
-            };
-            let (level, times) =
-                coarse_candidates(backend, &with_progress, &prep, target, set, cfg, c)?;
-            tally.times.add(&times);
-            Some(level)
-        }
-    };
-    let coarse_level_ms = ms(t_coarse.elapsed());
-    let t_kernel = Instant::now();
-    let kernel = target_kernel(target, prep.target_min, cfg.voxel)?;
-    let mut fine = FineLevel::new(&prep, kernel, ms(t_kernel.elapsed()));
-    let progress = match cfg.mode {
-        SearchMode::Exhaustive => cfg.progress.as_deref(),
-        SearchMode::CoarseToFine(_) => None,
-    };
-    let t_search = Instant::now();
-    let winner = fine.rounds(
-        backend,
-        &PassControl { progress, ..ctl },
-        set,
-        cfg,
-        coarse_level.as_mut(),
-        &mut tally,
-    )?;
-    let picks = fine.distinct(&ctl, set, cfg, winner, &mut tally)?;
-    let search_ms = ms(t_search.elapsed());
-    let timings = Timings {
-        target_ms: fine.target_ms,
-        extents_ms: fine.extents_ms,
-        search_ms,
-        total_ms: 0.0,
-        cpu_voxelize_ms: ms(tally.times.voxelize),
-        cpu_forward_ms: ms(tally.times.forward),
-        cpu_product_ms: ms(tally.times.product),
-        cpu_inverse_ms: ms(tally.times.inverse),
-        cpu_direct_ms: ms(tally.times.direct),
-        coarse_level_ms,
-        rescore_ms: ms(tally.rescore_time),
-    };
-    let mut result = fine.result(
-        source,
-        target,
-        set,
-        cfg,
-        picks,
-        coarse_level,
-        &tally,
-        timings,
-    )?;
-    result.timings.total_ms = ms(t_start.elapsed());
-    Ok(result)
+    PreparedSearch::new(source, target, set, cfg)?
+        .start(backend)?
+        .complete()
 }
 
 /// Refuses a bad voxel, `top_k = 0`, an empty set, bad coarse-to-fine parameters and empty
 /// clouds, before any work.
-fn validate(source: &Cloud, target: &Cloud, set: &RotationSet, cfg: &SearchConfig) -> Result<()> {
+pub(super) fn validate(source: &Cloud, target: &Cloud, set: &RotationSet, cfg: &SearchConfig) -> Result<()> {
     let s = cfg.voxel;
     if !(s.is_finite() && s > 0.0) {
         return Err(GgsError::param(
@@ -157,7 +88,7 @@ pub(super) struct Prepared {
 }
 
 impl Prepared {
-    fn new(
+    pub(super) fn new(
         source: &Cloud,
         target: &Cloud,
         set: &RotationSet,

@@ -1,0 +1,200 @@
+//! A search in steps, for a caller that may stop early: [`PreparedSearch::start`] ranks
+//! every rotation at the coarse level (coarse-to-fine); [`Search::first_look`] scores only
+//! the coarse level's best few at the voxel size and picks their distinct hypotheses;
+//! [`Search::complete`] scores what the whole search scores and returns what
+//! [`coarse_register_with`](super::coarse_register_with) returns, bit for bit: a rotation's
+//! score depends on nothing but the rotation, so the ones the first look scored keep theirs,
+//! and the picks are the exact best among the scored rotations whichever were re-scored in
+//! f64 on the way ([`super::selection::exact_best`]).
+
+use super::config::{SearchConfig, SearchMode};
+use super::correlator::{Backend, PassControl};
+use super::extents::target_kernel;
+use super::fine::{FineLevel, Picks};
+use super::levels::coarse_candidates;
+use super::register::{ms, validate, Prepared};
+use super::result::{CoarseLevel, SearchResult, Timings};
+use super::selection::Tally;
+use crate::cloud::Cloud;
+use crate::error::{GgsError, Result};
+use crate::rotations::RotationSet;
+use std::time::Instant;
+
+/// A checked request with both clouds prepared (the source centred, the rotations as rows, the
+/// memory budget) and the search's thread pool.
+pub struct PreparedSearch<'c> {
+    source: &'c Cloud,
+    target: &'c Cloud,
+    set: &'c RotationSet,
+    cfg: &'c SearchConfig,
+    pool: rayon::ThreadPool,
+    threads: usize,
+    prep: Prepared,
+    started: Instant,
+}
+
+impl<'c> PreparedSearch<'c> {
+    /// Check the request (bad voxel, empty set or clouds, bad coarse-to-fine parameters) and
+    /// prepare both clouds.
+    pub fn new(
+        source: &'c Cloud,
+        target: &'c Cloud,
+        set: &'c RotationSet,
+        cfg: &'c SearchConfig,
+    ) -> Result<Self> {
+        let started = Instant::now();
+        validate(source, target, set, cfg)?;
+        let threads = crate::threads::resolve(cfg.threads);
+        let (pool, _) = crate::threads::pool(threads)?;
+        let prep = Prepared::new(source, target, set, cfg, threads)?;
+        Ok(PreparedSearch {
+            source,
+            target,
+            set,
+            cfg,
+            pool,
+            threads,
+            prep,
+            started,
+        })
+    }
+
+    fn control(&self) -> PassControl<'_> {
+        PassControl {
+            pool: &self.pool,
+            threads: self.threads,
+            cancel: self.cfg.cancel.as_ref(),
+            progress: None,
+        }
+    }
+
+    /// The coarse level (coarse-to-fine: every rotation ranked at the coarser voxel) and the
+    /// target's kernel at the voxel size.
+    pub fn start<'a>(&'a self, backend: &'a dyn Backend) -> Result<Search<'a, 'c>> {
+        let mut tally = Tally::default();
+        let t_coarse = Instant::now();
+        let coarse_level = match &self.cfg.mode {
+            SearchMode::Exhaustive => None,
+            SearchMode::CoarseToFine(c) => {
+                let with_progress = PassControl {
+                    progress: self.cfg.progress.as_deref(),
+                    ..self.control()
+                };
+                let (level, times) = coarse_candidates(
+                    backend,
+                    &with_progress,
+                    &self.prep,
+                    self.target,
+                    self.set,
+                    self.cfg,
+                    c,
+                )?;
+                tally.times.add(&times);
+                Some(level)
+            }
+        };
+        let coarse_level_ms = ms(t_coarse.elapsed());
+        let t_kernel = Instant::now();
+        let kernel = target_kernel(self.target, self.prep.target_min, self.cfg.voxel)?;
+        let fine = FineLevel::new(&self.prep, kernel, ms(t_kernel.elapsed()));
+        Ok(Search {
+            inputs: self,
+            backend,
+            coarse_level,
+            coarse_level_ms,
+            fine,
+            tally,
+            fine_ms: 0.0,
+        })
+    }
+}
+
+/// A search under way: the coarse level done, the voxel size's level scored so far.
+pub struct Search<'a, 'c> {
+    inputs: &'a PreparedSearch<'c>,
+    backend: &'a dyn Backend,
+    coarse_level: Option<CoarseLevel>,
+    coarse_level_ms: f64,
+    fine: FineLevel<'a>,
+    tally: Tally,
+    /// Wall time spent at the voxel size so far, ms.
+    fine_ms: f64,
+}
+
+impl Search<'_, '_> {
+    /// The `count` best rotations of the coarse level scored at the voxel size (no
+    /// neighbours, no further rounds) and their distinct hypotheses, as a result whose
+    /// coarse level says `kept: count`. An error for an exhaustive search (no coarse level).
+    pub fn first_look(&mut self, count: usize) -> Result<SearchResult> {
+        let p = self.inputs;
+        let level = self.coarse_level.as_ref().ok_or_else(|| {
+            GgsError::param("search", "a first look needs a coarse-to-fine search")
+        })?;
+        let t = Instant::now();
+        let ctl = p.control();
+        let winner = self
+            .fine
+            .first_look(self.backend, &ctl, p.cfg, level, count, &mut self.tally)?;
+        let picks = self.fine.distinct(&ctl, p.set, p.cfg, winner, &mut self.tally)?;
+        self.fine_ms += ms(t.elapsed());
+        let mut level = level.clone();
+        level.kept = count.clamp(1, level.order().len());
+        level.winner_rank = level.rank_of(winner);
+        level.rounds = 0;
+        self.result(picks, Some(level))
+    }
+
+    /// The whole search: at the voxel size, the kept rotations and their neighbours in
+    /// rounds (coarse-to-fine) or every rotation (exhaustive), then the distinct hypotheses.
+    pub fn complete(mut self) -> Result<SearchResult> {
+        let p = self.inputs;
+        let t = Instant::now();
+        let ctl = p.control();
+        let progress = match p.cfg.mode {
+            SearchMode::Exhaustive => p.cfg.progress.as_deref(),
+            SearchMode::CoarseToFine(_) => None,
+        };
+        let winner = self.fine.rounds(
+            self.backend,
+            &PassControl { progress, ..ctl },
+            p.set,
+            p.cfg,
+            self.coarse_level.as_mut(),
+            &mut self.tally,
+        )?;
+        let picks = self.fine.distinct(&ctl, p.set, p.cfg, winner, &mut self.tally)?;
+        self.fine_ms += ms(t.elapsed());
+        let level = self.coarse_level.take();
+        self.result(picks, level)
+    }
+
+    fn result(&self, picks: Picks, level: Option<CoarseLevel>) -> Result<SearchResult> {
+        let p = self.inputs;
+        let times = &self.tally.times;
+        let timings = Timings {
+            target_ms: self.fine.target_ms,
+            extents_ms: self.fine.extents_ms,
+            search_ms: self.fine_ms,
+            total_ms: 0.0,
+            cpu_voxelize_ms: ms(times.voxelize),
+            cpu_forward_ms: ms(times.forward),
+            cpu_product_ms: ms(times.product),
+            cpu_inverse_ms: ms(times.inverse),
+            cpu_direct_ms: ms(times.direct),
+            coarse_level_ms: self.coarse_level_ms,
+            rescore_ms: ms(self.tally.rescore_time),
+        };
+        let mut result = self.fine.result(
+            p.source,
+            p.target,
+            p.set,
+            p.cfg,
+            picks,
+            level,
+            &self.tally,
+            timings,
+        )?;
+        result.timings.total_ms = ms(p.started.elapsed());
+        Ok(result)
+    }
+}
