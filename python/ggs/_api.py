@@ -213,6 +213,15 @@ class Result:
         return self._fields["verified"]  # type: ignore[no-any-return]
 
     @property
+    def first_look(self) -> Optional[Dict[str, Any]]:
+        """What the first look did (None where it did not run: ``preset="paper"``,
+        ``first_look=False``, no verification, :func:`refine`): ``rotations`` scored at the
+        voxel size, hypotheses ``verified``, the chosen pose's ``score``, the best distinct
+        ``runner_up_score`` (or None), and whether it was ``accepted`` (the whole search was
+        then not run)."""
+        return self._fields["first_look"]  # type: ignore[no-any-return]
+
+    @property
     def report(self) -> Optional[Dict[str, Any]]:
         """The refinement's quality report (fitness both ways, RMSE, eigenvalues, ...)."""
         return self._fields["report"]  # type: ignore[no-any-return]
@@ -266,6 +275,7 @@ def native_options(
     margin: Optional[float] = None,
     verify_score: Optional[str] = None,
     verify: bool = True,
+    first_look: bool = True,
     polish: bool = False,
     max_memory: Union[int, str, None] = None,
     distinct_radius: Optional[float] = None,
@@ -305,6 +315,7 @@ def native_options(
         "margin": margin,
         "verify_score": verify_score,
         "verify": verify,
+        "first_look": first_look,
         "polish": polish,
         "max_memory": _bytes(max_memory),
         "distinct_radius": distinct_radius,
@@ -338,6 +349,7 @@ def register(
     margin: Optional[float] = None,
     verify_score: Optional[str] = None,
     verify: bool = True,
+    first_look: bool = True,
     polish: bool = False,
     max_memory: Union[int, str, None] = None,
     distinct_radius: Optional[float] = None,
@@ -373,8 +385,11 @@ def register(
       ``"tight"`` (default: a point within the distance D counts by 1 − d²/D²) or
       ``"fitness"`` (the share of points within D) or ``"oriented"`` (``"tight"`` counting
       only points whose normals face the same way); verify=False takes the coarse winner;
-      polish=True moves each hypothesis on a finer rotation grid first.
-    top_k: coarse hypotheses reported; distinct_radius: degrees that make two rotations
+      first_look=False always runs the whole search (by default the hypotheses of the
+      coarse level's best 16 rotations are verified first, and the search stops there when
+      one pose scores at least 0.5 and no distinct pose 0.6 of that); polish=True moves
+      each hypothesis on a finer rotation grid first.
+    top_k: coarse hypotheses reported (of the whole search: it turns the first look off); distinct_radius: degrees that make two rotations
       distinct (default 2 × the set's step); max_memory: bytes, or ``"2G"``, ``"512M"``;
       dedup: drop rotations within this many degrees of an earlier one.
     coarse_factor, coarse_keep, coarse_keep_min: the coarse-to-fine search's coarse voxel
@@ -403,6 +418,7 @@ def register(
         margin=margin,
         verify_score=verify_score,
         verify=verify,
+        first_look=first_look,
         polish=polish,
         max_memory=max_memory,
         distinct_radius=distinct_radius,

@@ -69,6 +69,7 @@ pub(crate) struct Options {
     margin: Option<f64>,
     verify_score: Option<String>,
     verify: bool,
+    first_look: bool,
     polish: bool,
     max_memory: Option<u64>,
     distinct_radius: Option<f64>,
@@ -152,6 +153,8 @@ fn apply_search(cfg: &mut RegistrationConfig, o: &Options) -> PyResult<()> {
     cfg.search.precision = o.precision.parse().map_err(value_err)?;
     if let Some(k) = o.top_k {
         cfg.search.top_k = k;
+        // The K best of the whole search: a first look has only its own few.
+        cfg.first_look = None;
     }
     cfg.search.max_memory = o.max_memory;
     cfg.search.distinct_radius_deg = o.distinct_radius;
@@ -162,6 +165,9 @@ fn apply_search(cfg: &mut RegistrationConfig, o: &Options) -> PyResult<()> {
 fn apply_verification(cfg: &mut RegistrationConfig, o: &Options) -> PyResult<()> {
     if !o.verify {
         cfg.verify = None;
+    }
+    if !o.first_look {
+        cfg.first_look = None;
     }
     let asked = o.max_hypotheses.is_some() || o.margin.is_some() || o.verify_score.is_some();
     match &mut cfg.verify {

@@ -87,6 +87,19 @@ fn verified_list<'py>(py: Python<'py>, reg: &Registration) -> PyResult<Bound<'py
     Ok(list)
 }
 
+fn first_look_dict<'py>(
+    py: Python<'py>,
+    f: &ggs::pipeline::FirstLookReport,
+) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item("rotations", f.rotations)?;
+    d.set_item("verified", f.verified)?;
+    d.set_item("score", f.score)?;
+    d.set_item("runner_up_score", f.runner_up_score)?;
+    d.set_item("accepted", f.accepted)?;
+    Ok(d)
+}
+
 /// The dict of a result: `registration` for `register`, `None` for `refine`.
 pub fn result_dict<'py>(
     py: Python<'py>,
@@ -133,6 +146,8 @@ pub fn result_dict<'py>(
             None => PyList::empty(py),
         },
     )?;
+    let look = registration.and_then(|r| r.first_look);
+    d.set_item("first_look", look.map(|f| first_look_dict(py, &f)).transpose()?)?;
     let t = PyDict::new(py);
     for k in TIMING_KEYS {
         t.set_item(k, 0.0)?;

@@ -414,6 +414,20 @@ def test_progress_callback_and_every_option_reachable():
     assert r.report["correspondence_distance"] == 0.01 and r.report["iterations"] <= 40
 
 
+def test_first_look_settles_a_clear_pair_and_can_be_turned_off():
+    source = ggs.read_point_cloud(DATA / "bun045.ply")
+    target = ggs.read_point_cloud(DATA / "bun000.ply")
+    first = ggs.register(source, target, voxel=0.005)
+    look = first.first_look
+    assert look["accepted"] and look["rotations"] == 16 and look["score"] >= 0.5
+    assert look["verified"] == len(first.verified)
+    whole = ggs.register(source, target, voxel=0.005, first_look=False)
+    assert whole.first_look is None and len(whole.verified) > len(first.verified)
+    assert ggs.metrics.rre(first.transformation, whole.transformation) < 0.01
+    paper = ggs.register(source, target, voxel=0.005, preset="paper")
+    assert paper.first_look is None
+
+
 
 def test_verify_score_tight_weighs_closeness_fitness_counts():
     source, target = bunny_small()

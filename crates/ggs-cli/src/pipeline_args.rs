@@ -37,6 +37,12 @@ pub struct PipelineArgs {
     /// Take the coarse winner without verification.
     #[arg(long)]
     pub no_verify: bool,
+    /// Always run the whole search. Without this flag the default preset first verifies the
+    /// hypotheses of the coarse level's best 16 rotations and stops there when one pose
+    /// scores at least 0.5 and no distinct pose 0.6 of that (docs/pipeline.md, "The first
+    /// look").
+    #[arg(long)]
+    pub no_first_look: bool,
     /// Polish each hypothesis on a finer rotation grid (7 rotations a step, scored by the
     /// correlation) before its ICP; off by default (measured: no change on the benchmarks).
     #[arg(long)]
@@ -67,6 +73,9 @@ impl PipelineArgs {
         cfg.search.precision = precision;
         if self.no_verify {
             cfg.verify = None;
+        }
+        if self.no_first_look {
+            cfg.first_look = None;
         }
         if let Some(v) = &mut cfg.verify {
             if let Some(n) = self.max_hypotheses {

@@ -35,7 +35,9 @@ pub struct RegisterArgs {
     /// Worker threads (default: all cores). The result does not depend on it.
     #[arg(long, default_value_t = 0)]
     pub threads: usize,
-    /// Report the K best distinct coarse hypotheses (default: as many as are verified).
+    /// Report the K best distinct coarse hypotheses of the whole search (default: as many as
+    /// are verified). Runs the whole search, as --no-first-look: a first look reports only
+    /// the distinct poses among its 16 rotations.
     #[arg(long)]
     pub top_k: Option<usize>,
     /// Rotations within this angle (degrees) of a better one are not distinct
@@ -167,6 +169,7 @@ fn config(args: &RegisterArgs) -> Result<RegistrationConfig> {
     }
     if let Some(k) = args.top_k {
         cfg.search.top_k = k;
+        cfg.first_look = None;
     }
     cfg.search.distinct_radius_deg = args.distinct_radius;
     cfg.search.max_memory = match &args.max_memory {
@@ -279,6 +282,7 @@ fn print_json(args: &RegisterArgs, reg: &Registration, read_ms: f64, total_ms: f
         "ambiguous": reg.ambiguous,
         "warnings": reg.warnings,
         "result": reg.search,
+        "first_look": reg.first_look,
         "verification": reg.verification,
         "refine": reg.refine,
         "refine_cell": reg.refine_cell,
@@ -293,6 +297,21 @@ fn print_json(args: &RegisterArgs, reg: &Registration, read_ms: f64, total_ms: f
 
 fn print_summary(reg: &Registration, preset: &str, read_ms: f64, total_ms: f64) -> Result<()> {
     print_search(reg, preset)?;
+    if let Some(f) = &reg.first_look {
+        outln!(
+            "first look  {} rotations, {} hypothesis(es) verified: best {:.3}, runner-up {}: {}",
+            f.rotations,
+            f.verified,
+            f.score,
+            f.runner_up_score
+                .map_or("none".to_string(), |r| format!("{r:.3}")),
+            if f.accepted {
+                "taken (the whole search was not needed)"
+            } else {
+                "not clear, the whole search ran"
+            }
+        );
+    }
     match &reg.verification {
         Some(v) => print_verification(v)?,
         None => {
@@ -393,7 +412,13 @@ fn print_grids(r: &coarse::SearchResult) -> Result<()> {
             coarse::REPRESENTATIVE_DIVISIONS
         );
     }
-    if let Some(c) = &r.stats.coarse_level {
+    if let Some(c) = r.stats.coarse_level.as_ref().filter(|c| c.rounds == 0) {
+        let f = &c.geometry.fft_len;
+        outln!(
+            "coarse      voxel {}, {} source points, FFT {}×{}×{}; the best {} of {} rotations scored at the voxel size (first look, no neighbours; winner ranked {})",
+            c.voxel, c.source_points, f[0], f[1], f[2], c.kept, r.stats.rotations, c.winner_rank
+        );
+    } else if let Some(c) = &r.stats.coarse_level {
         let f = &c.geometry.fft_len;
         outln!(
             "coarse      voxel {}, {} source points, FFT {}×{}×{}; kept {} of {} rotations ({} round(s); winner ranked {}), with neighbours within {:.1}°: {} scored at the voxel size",

@@ -322,6 +322,10 @@ fn the_default_summary_shows_the_verified_hypotheses_and_the_confidence() {
     let text = String::from_utf8_lossy(&out.stdout);
     assert!(out.status.success(), "{text}");
     assert!(text.contains(" (coarse level) "), "{text}");
+    // This clear pair is settled by the first look, which says so.
+    assert!(text.contains("first look  16 rotations"), "{text}");
+    assert!(text.contains("taken (the whole search was not needed)"), "{text}");
+    assert!(text.contains("(first look, no neighbours; winner ranked"), "{text}");
     let out = register_pair(&[
         "--max-hypotheses",
         "4",
@@ -329,6 +333,7 @@ fn the_default_summary_shows_the_verified_hypotheses_and_the_confidence() {
         "0",
         "--coarse-hypotheses",
         "0",
+        "--no-first-look",
     ]);
     let text = String::from_utf8_lossy(&out.stdout);
     assert!(out.status.success(), "{text}");
@@ -338,6 +343,7 @@ fn the_default_summary_shows_the_verified_hypotheses_and_the_confidence() {
         "{text}"
     );
     assert!(text.contains("verified    4 hypothesis(es)"), "{text}");
+    assert!(!text.contains("first look"), "{text}");
     assert!(text.contains("← chosen"), "{text}");
     assert!(text.contains("confidence  "), "{text}");
 }
@@ -346,12 +352,20 @@ fn the_default_summary_shows_the_verified_hypotheses_and_the_confidence() {
 /// GICP) gives the same bits on 1 and 2 threads.
 #[test]
 fn the_default_pipeline_is_bit_identical_for_any_thread_count() {
-    let run = |threads: &str| -> serde_json::Value {
-        let out = register_pair(&["--json", "--margin", "0", "--threads", threads]);
+    let run = |threads: &str, more: &[&str]| -> serde_json::Value {
+        let mut args = vec!["--json", "--margin", "0", "--threads", threads];
+        args.extend_from_slice(more);
+        let out = register_pair(&args);
         assert!(out.status.success());
         serde_json::from_slice(&out.stdout).unwrap()
     };
-    let (a, b) = (run("1"), run("2"));
+    // With the first look (which settles this pair) and without it.
+    let (a, b) = (run("1", &[]), run("2", &[]));
+    assert_eq!(a["first_look"]["accepted"], true);
+    assert_eq!(a["transform"], b["transform"]);
+    assert_eq!(a["verification"], b["verification"]);
+    let (a, b) = (run("1", &["--no-first-look"]), run("2", &["--no-first-look"]));
+    assert!(a["first_look"].is_null());
     assert_eq!(a["transform"], b["transform"]);
     // Every distinct hypothesis of the search, up to the default 32.
     let n = a["verification"]["hypotheses"].as_array().unwrap().len();

@@ -213,6 +213,7 @@ impl RunConfig {
             },
             "polish": p.polish,
             "verify": p.verify,
+            "first_look": p.first_look,
             "refine": refine,
         })
     }
@@ -362,6 +363,7 @@ fn fill_row(row: &mut PairRow, reg: &Registration, truth: &Rigid) {
         row.verify_score = Some(v.hypotheses[v.chosen].evidence.score);
         row.runner_up_score = v.runner_up.map(|k| v.hypotheses[k].evidence.score);
     }
+    row.first_look = reg.first_look.map(|f| f.accepted);
     row.confidence = reg.confidence;
     row.ambiguous = reg.ambiguous;
     row.rre = rre(&reg.transform, truth);

@@ -54,6 +54,9 @@ pub struct PairRow {
     /// Verification score of the chosen pose and of the best distinct runner-up.
     pub verify_score: Option<f64>,
     pub runner_up_score: Option<f64>,
+    /// Whether the first look settled the pair (true) or the whole search ran (false); absent
+    /// where it did not run.
+    pub first_look: Option<bool>,
     /// The estimate, 16 numbers row-major (empty when the pair failed).
     pub transform: Vec<f64>,
     pub read_ms: f64,
@@ -94,6 +97,7 @@ pub const COLUMNS: [&str; N] = [
     "ambiguous",
     "verify_score",
     "runner_up_score",
+    "first_look",
     "transform",
     "read_ms",
     "coarse_ms",
@@ -104,7 +108,7 @@ pub const COLUMNS: [&str; N] = [
 ];
 
 /// The number of columns.
-const N: usize = 34;
+const N: usize = 35;
 
 impl PairRow {
     /// An empty row for a pair (errors NaN until measured).
@@ -137,6 +141,7 @@ impl PairRow {
             ambiguous: false,
             verify_score: None,
             runner_up_score: None,
+            first_look: None,
             transform: Vec::new(),
             read_ms: 0.0,
             coarse_ms: 0.0,
@@ -180,6 +185,7 @@ impl PairRow {
             self.ambiguous.to_string(),
             opt(&self.verify_score),
             opt(&self.runner_up_score),
+            opt(&self.first_look),
             self.transform
                 .iter()
                 .map(f64::to_string)
@@ -220,7 +226,7 @@ impl PairRow {
                 p(f, k).map(Some)
             }
         }
-        const TRANSFORM: usize = 27;
+        const TRANSFORM: usize = 28;
         let transform = if f[TRANSFORM].is_empty() {
             Vec::new()
         } else {
@@ -258,13 +264,14 @@ impl PairRow {
             ambiguous: p(&f, 24)?,
             verify_score: o(&f, 25)?,
             runner_up_score: o(&f, 26)?,
+            first_look: o(&f, 27)?,
             transform,
-            read_ms: p(&f, 28)?,
-            coarse_ms: p(&f, 29)?,
-            verify_ms: p(&f, 30)?,
-            refine_ms: p(&f, 31)?,
-            total_ms: p(&f, 32)?,
-            error: o(&f, 33)?,
+            read_ms: p(&f, 29)?,
+            coarse_ms: p(&f, 30)?,
+            verify_ms: p(&f, 31)?,
+            refine_ms: p(&f, 32)?,
+            total_ms: p(&f, 33)?,
+            error: o(&f, 34)?,
         })
     }
 }
@@ -407,6 +414,7 @@ mod tests {
         r.ambiguous = true;
         r.verify_score = Some(0.5);
         r.runner_up_score = Some(0.375);
+        r.first_look = Some(true);
         r.transform = (0..16).map(|k| k as f64 / 7.0).collect();
         r.total_ms = 12.5;
         r.error = Some("line one\nline two".into());

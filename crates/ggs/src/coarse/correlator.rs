@@ -206,7 +206,7 @@ pub struct PassControl<'a> {
 }
 
 /// A planned correlation against one target kernel at one geometry.
-pub trait Correlator: Sync {
+pub trait Correlator: Send + Sync {
     /// The geometry it was planned for (every source grid fits `source_max`).
     fn geometry(&self) -> &Geometry;
     /// Cells of the kernel grid, `|K|`.

@@ -66,6 +66,6 @@ pub use config::{
 };
 pub use correlator::{Backend, Correlator, CpuBackend, Scores};
 pub use register::{coarse_register, coarse_register_with};
-pub use staged::{PreparedSearch, Search};
 pub use result::{CoarseLevel, Hypothesis, LevelHypothesis, SearchResult, SearchStats, Timings};
 pub use source::{representatives, MIN_POINTS_PER_REPRESENTATIVE, REPRESENTATIVE_DIVISIONS};
+pub use staged::{PreparedSearch, Search};

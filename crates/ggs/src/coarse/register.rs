@@ -51,7 +51,12 @@ pub fn coarse_register_with(
 
 /// Refuses a bad voxel, `top_k = 0`, an empty set, bad coarse-to-fine parameters and empty
 /// clouds, before any work.
-pub(super) fn validate(source: &Cloud, target: &Cloud, set: &RotationSet, cfg: &SearchConfig) -> Result<()> {
+pub(super) fn validate(
+    source: &Cloud,
+    target: &Cloud,
+    set: &RotationSet,
+    cfg: &SearchConfig,
+) -> Result<()> {
     let s = cfg.voxel;
     if !(s.is_finite() && s > 0.0) {
         return Err(GgsError::param(

@@ -132,10 +132,12 @@ impl Search<'_, '_> {
         })?;
         let t = Instant::now();
         let ctl = p.control();
-        let winner = self
+        let winner =
+            self.fine
+                .first_look(self.backend, &ctl, p.cfg, level, count, &mut self.tally)?;
+        let picks = self
             .fine
-            .first_look(self.backend, &ctl, p.cfg, level, count, &mut self.tally)?;
-        let picks = self.fine.distinct(&ctl, p.set, p.cfg, winner, &mut self.tally)?;
+            .distinct(&ctl, p.set, p.cfg, winner, &mut self.tally)?;
         self.fine_ms += ms(t.elapsed());
         let mut level = level.clone();
         level.kept = count.clamp(1, level.order().len());
@@ -162,7 +164,9 @@ impl Search<'_, '_> {
             self.coarse_level.as_mut(),
             &mut self.tally,
         )?;
-        let picks = self.fine.distinct(&ctl, p.set, p.cfg, winner, &mut self.tally)?;
+        let picks = self
+            .fine
+            .distinct(&ctl, p.set, p.cfg, winner, &mut self.tally)?;
         self.fine_ms += ms(t.elapsed());
         let level = self.coarse_level.take();
         self.result(picks, level)
@@ -196,5 +200,86 @@ impl Search<'_, '_> {
         )?;
         result.timings.total_ms = ms(p.started.elapsed());
         Ok(result)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::coarse::config::CoarseToFine;
+    use crate::coarse::correlator::CpuBackend;
+    use crate::coarse::source::tests::plane;
+    use crate::coarse::{coarse_register, SearchConfig};
+    use crate::transform::Rigid;
+    use nalgebra::Vector3;
+
+    fn pair(set: &RotationSet) -> (Cloud, Cloud) {
+        let source = plane(60, 0.02);
+        let truth = Rigid::new(set.matrices[700], Vector3::new(0.3, -0.2, 0.1));
+        let target = source.transformed(&truth);
+        (source, target)
+    }
+
+    fn coarse_to_fine() -> SearchConfig {
+        let mut cfg = SearchConfig::with_voxel(0.06);
+        cfg.mode = SearchMode::CoarseToFine(CoarseToFine::for_verification());
+        cfg.top_k = 8;
+        cfg
+    }
+
+    #[test]
+    fn a_first_look_then_the_rest_is_the_whole_search_bit_for_bit() {
+        let set = RotationSet::named("limited15").unwrap();
+        let (source, target) = pair(&set);
+        let cfg = coarse_to_fine();
+        let whole = coarse_register(&source, &target, &set, &cfg).unwrap();
+        let prepared = PreparedSearch::new(&source, &target, &set, &cfg).unwrap();
+        let mut search = prepared.start(&CpuBackend).unwrap();
+        let first = search.first_look(4).unwrap();
+        let rest = search.complete().unwrap();
+        assert_eq!(rest.hypotheses, whole.hypotheses);
+        assert_eq!(rest.runner_up, whole.runner_up);
+        assert_eq!(rest.ambiguity, whole.ambiguity);
+        assert_eq!(rest.stats.scored, whole.stats.scored);
+        let (a, b) = (
+            rest.stats.coarse_level.unwrap(),
+            whole.stats.coarse_level.unwrap(),
+        );
+        assert_eq!(
+            (a.kept, a.rounds, a.winner_rank),
+            (b.kept, b.rounds, b.winner_rank)
+        );
+        assert!(first.stats.scored < whole.stats.scored);
+    }
+
+    #[test]
+    fn a_first_look_scores_only_the_best_of_the_coarse_level() {
+        let set = RotationSet::named("limited15").unwrap();
+        let (source, target) = pair(&set);
+        let cfg = coarse_to_fine();
+        let prepared = PreparedSearch::new(&source, &target, &set, &cfg).unwrap();
+        let mut search = prepared.start(&CpuBackend).unwrap();
+        let first = search.first_look(4).unwrap();
+        let level = first.stats.coarse_level.as_ref().unwrap();
+        assert_eq!((first.stats.scored, level.kept, level.rounds), (4, 4, 0));
+        let best = &level.order()[..4];
+        assert!(first
+            .hypotheses
+            .iter()
+            .all(|h| best.contains(&h.rotation_index)));
+        assert_eq!(
+            level.winner_rank,
+            level.rank_of(first.winner().rotation_index)
+        );
+    }
+
+    #[test]
+    fn an_exhaustive_search_has_no_first_look() {
+        let set = RotationSet::named("limited15").unwrap();
+        let (source, target) = pair(&set);
+        let cfg = SearchConfig::with_voxel(0.06);
+        let prepared = PreparedSearch::new(&source, &target, &set, &cfg).unwrap();
+        let mut search = prepared.start(&CpuBackend).unwrap();
+        assert!(search.first_look(4).is_err());
     }
 }

@@ -1,20 +1,25 @@
 //! The registration pipeline that every front end calls (`ggs register`, `ggs bench`, Python):
-//! voxel size → coarse search → polish and verification of the distinct hypotheses →
-//! refinement of the chosen one.
+//! voxel size → coarse search → verification of the distinct hypotheses → refinement of the
+//! chosen one.
 //!
 //! ```text
 //! source, target ──► voxel (auto or fixed)
-//!                ──► coarse search over a rotation set (search)       → K distinct hypotheses
-//!                ──► for each kept hypothesis: polish (polish)         → a finer rotation
-//!                                              ICP on thinned clouds and a verification score (verify)
+//!                ──► coarse level: every rotation at a coarser voxel (search)
+//!                ──► first look (first_look): its best few at the voxel size, verified;
+//!                    one pose clearly right → to the refinement
+//!                ──► the rest of the coarse search (search)           → K distinct hypotheses
+//!                ──► for each kept hypothesis: [polish (polish)]
+//!                                              ICP on thinned clouds and a verification score
+//!                                              (verify, hypotheses)
 //!                ──► the best-verified hypothesis, refined (refine): default preset on
 //!                    clouds thinned to a fifth of a voxel (see [`FinalStage`])
 //! ```
 //!
 //! Two presets ([`Preset`]):
 //! - [`Preset::Default`], for clouds with no initial guess: the full-SO(3) set `hopf15-id`,
-//!   the coarse-to-fine search, the polish, and the verification of every distinct hypothesis
-//!   whose match score is at least half the winner's (at most 8), then GICP;
+//!   the coarse-to-fine search with its first look ([`FirstLook`]), the verification of every
+//!   distinct hypothesis whose match score is at least half the winner's (at most 32) and of
+//!   the coarse level's 8 best distinct poses, then GICP on thinned clouds;
 //! - [`Preset::Paper`], the configuration of the GGS paper: `limited15` (|α|, |γ| ≤ 90°),
 //!   exhaustive, the single best hypothesis, GICP with the reference parameters.
 //!
@@ -25,22 +30,29 @@
 //! ambiguity), and `ambiguous` when two distinct poses verify within
 //! [`VerifyConfig::ambiguous_ratio`] of each other.
 
+pub mod first_look;
+mod hypotheses;
 pub mod polish;
 pub mod verify;
 
 use crate::cloud::Cloud;
 use crate::coarse::{
-    auto_voxel, coarse_register, round_2_digits, CoarseToFine, Hypothesis, SearchConfig,
+    auto_voxel, round_2_digits, CoarseToFine, CpuBackend, PreparedSearch, Search, SearchConfig,
     SearchMode, SearchResult,
 };
 use crate::error::{GgsError, Result};
-use crate::refine::{
-    refine_prepared, refine_prepared_pose, PreparedPair, RefineConfig, RefineResult,
-};
+use crate::refine::{refine_prepared, PreparedPair, RefineConfig, RefineResult};
 use crate::rotations::{RotationSet, DEFAULT_SET};
 use crate::transform::{rotation_angle_deg, Rigid};
+pub use first_look::{FirstLook, FirstLookReport};
+use hypotheses::{
+    maybe_polished, prepare_pair, verify_hypotheses, FirstStages, VerifyInputs, VerifyPass,
+    VerifyReady,
+};
+pub use hypotheses::{
+    HypothesisLevel, Verification, VerifiedHypothesis, SAME_POSE_DEG, SAME_POSE_VOXELS,
+};
 pub use polish::PolishConfig;
-use rayon::prelude::*;
 use std::time::Instant;
 pub use verify::{Evidence, VerifyConfig, VerifyScore};
 
@@ -53,15 +65,6 @@ pub const AUTO_VOXEL_CELLS: usize = 32;
 /// coincidences instead of overlapping surfaces. Measured on PCL's 400-point bunny scans
 /// (spacing 6.2 mm, side / 32 = 4.6 mm): wrong pose at 0.74 spacings, right from 0.9 to 2.4.
 pub const AUTO_VOXEL_SPACINGS: f64 = 1.5;
-
-/// Verified poses farther apart than this many voxels in translation are distinct.
-const DISTINCT_TRANSLATION_VOXELS: f64 = 3.0;
-/// A hypothesis whose verification ICP has, at the check, brought it within this angle
-/// (degrees) and [`SAME_POSE_VOXELS`] (where the source's centroid lands) of an earlier
-/// verified pose stops there: it is on its way to the same pose.
-pub const SAME_POSE_DEG: f64 = 1.0;
-/// See [`SAME_POSE_DEG`].
-pub const SAME_POSE_VOXELS: f64 = 0.25;
 
 /// A verification score below this says the result is probably wrong.
 const LOW_EVIDENCE: f64 = 0.1;
@@ -226,6 +229,9 @@ pub struct RegistrationConfig {
     pub polish: Option<PolishConfig>,
     /// Verification of the distinct hypotheses (`None`: the coarse winner is taken).
     pub verify: Option<VerifyConfig>,
+    /// Verify the coarse level's best few first and stop there when they settle the pair
+    /// (coarse-to-fine with verification only; `None`: the whole search always).
+    pub first_look: Option<FirstLook>,
     /// How the final refinement runs (resolution, stopping step).
     pub final_stage: FinalStage,
     /// Refinement of the chosen hypothesis (`None`: none). Verification
@@ -250,6 +256,7 @@ impl RegistrationConfig {
                     search,
                     polish: None,
                     verify: Some(VerifyConfig::default()),
+                    first_look: Some(FirstLook::default()),
                     final_stage: FinalStage::THINNED,
                     refine: Some(RefineConfig::default()),
                     threads: 0,
@@ -261,6 +268,7 @@ impl RegistrationConfig {
                 search,
                 polish: None,
                 verify: None,
+                first_look: None,
                 final_stage: FinalStage::FULL,
                 refine: Some(RefineConfig::default()),
                 threads: 0,
@@ -273,63 +281,6 @@ impl Default for RegistrationConfig {
     fn default() -> Self {
         Self::preset(Preset::Default)
     }
-}
-
-/// One coarse hypothesis after polish and verification.
-#[derive(Debug, Clone, serde::Serialize)]
-pub struct VerifiedHypothesis {
-    /// Position in the verified list: the voxel size's distinct hypotheses in coarse rank
-    /// order (0: the search's winner), then the coarse level's.
-    pub rank: usize,
-    /// Which level of the search proposed it.
-    pub level: HypothesisLevel,
-    pub rotation_index: usize,
-    /// Coarse match score `5·n11 − n01` at the grid rotation, and after the polish.
-    pub match_score: i64,
-    pub polished_match_score: i64,
-    #[serde(serialize_with = "crate::transform::serialize_rows")]
-    pub coarse_transform: Rigid,
-    /// After the polish and the verification's ICP.
-    #[serde(serialize_with = "crate::transform::serialize_rows")]
-    pub transform: Rigid,
-    pub evidence: Evidence,
-    pub iterations: usize,
-    pub rejected_early: bool,
-    /// Rejected on a glance at a random part of the sample (`evidence.points`), whose estimate
-    /// of the score lay far below the threshold (`verify::finish`).
-    pub at_a_glance: bool,
-    /// Refined again on finer cells because another distinct pose also survived.
-    pub settled: bool,
-    /// Stopped at the check on the pose of this earlier verified hypothesis (its `rank`),
-    /// whose evidence it carries (within [`SAME_POSE_DEG`] and [`SAME_POSE_VOXELS`]).
-    pub same_as: Option<usize>,
-}
-
-/// The level of the coarse search a hypothesis comes from.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
-#[serde(rename_all = "lowercase")]
-pub enum HypothesisLevel {
-    /// The voxel size: an exact argmax (`SearchResult::hypotheses`).
-    Voxel,
-    /// The coarse level of a coarse-to-fine search (`CoarseLevel::hypotheses`).
-    Coarse,
-}
-
-/// What the verification found.
-#[derive(Debug, Clone, serde::Serialize)]
-pub struct Verification {
-    /// The verified hypotheses: the voxel size's in coarse rank order, then the coarse level's.
-    pub hypotheses: Vec<VerifiedHypothesis>,
-    /// Index into `hypotheses` of the chosen one.
-    pub chosen: usize,
-    /// Index of the best-scoring hypothesis distinct from the chosen one.
-    pub runner_up: Option<usize>,
-    /// The verification distance `D`, cloud units.
-    pub distance: f64,
-    /// ICP cell size of the verification, cloud units.
-    pub cell: f64,
-    /// How a point within `D` counted.
-    pub score: VerifyScore,
 }
 
 /// Wall times of the stages, milliseconds.
@@ -362,6 +313,8 @@ pub struct Registration {
     /// What a user should know: ambiguity, low evidence.
     pub warnings: Vec<String>,
     pub search: SearchResult,
+    /// What the first look did (`None`: it did not run).
+    pub first_look: Option<FirstLookReport>,
     pub verification: Option<Verification>,
     pub refine: Option<RefineResult>,
     /// Cell edge (cloud units) of the clouds the final refinement ran on; 0: full resolution.
@@ -435,6 +388,7 @@ fn register_in_pool(
         s.max(t)
     })?;
     let search = search_config(cfg, voxel);
+    let first_look = first_look_of(cfg, &search);
     // What the verification and the final refinement start from depends on the clouds and
     // the voxel only: it is built while the search runs, on the threads the search leaves
     // idle (the same results: every piece is a pure function of its inputs).
@@ -442,8 +396,9 @@ fn register_in_pool(
         threads: cfg.threads,
         ..RefineConfig::default()
     });
-    let (coarse, (ready, prepared_final)) = rayon::join(
-        || coarse_register(source, target, &cfg.rotations, &search),
+    let prepared = std::sync::OnceLock::new();
+    let (started, (ready, prepared_final)) = rayon::join(
+        || start_search(&prepared, source, target, cfg, &search, first_look.as_ref()),
         || {
             rayon::join(
                 || {
@@ -451,41 +406,37 @@ fn register_in_pool(
                         VerifyReady::new(source, target, voxel, spacing_of_target(), v, icp)
                     })
                 },
-                // A thinned pair only: a full-resolution one (`--refine-cell 0`) of a large
-                // cloud would add its size to the search's peak memory.
-                || {
-                    refine_cfg
-                        .as_ref()
-                        .filter(|_| cfg.final_stage.cell_voxels > 0.0)
-                        .map(|r| final_pair(source, target, voxel, r, cfg.final_stage))
-                },
+                || thinned_final_pair(source, target, voxel, refine_cfg.as_ref(), cfg),
             )
         },
     );
-    let mut coarse = coarse?;
-    let search_ms = ms(t0);
+    let (running, first) = started?;
+    let mut search_ms = ms(t0);
+    // The first look's search ends here; completing it (below) counts as search too.
     let t_verify = Instant::now();
-    let verification = match (&cfg.verify, ready) {
-        (Some(v), Some(ready)) => {
-            let inputs = VerifyInputs {
-                source,
-                target,
-                coarse: &coarse,
-                search: &search,
-            };
-            Some(verify_hypotheses(&inputs, ready?, cfg, v)?)
-        }
-        _ => None,
-    };
+    let ready = ready.transpose()?;
+    let clouds = (source, target);
+    let found = settle(
+        clouds,
+        running,
+        first,
+        ready.as_ref(),
+        first_look,
+        &search,
+        cfg,
+    )?;
+    let rest_ms = found.rest_ms;
+    search_ms += rest_ms;
+    let (first_look, verification, mut coarse) = (found.report, found.verification, found.coarse);
     let (start, coarse_transform, chosen_rank) =
         starting_pose(source, target, &coarse, verification.as_ref(), &search, cfg)?;
-    let verify_ms = ms(t_verify);
+    let verify_ms = ms(t_verify) - rest_ms;
     let t_refine = Instant::now();
     let refined = match (&refine_cfg, prepared_final) {
-        (Some(r), Some(pair)) => Some(refine_final(&pair?, &start, r, cfg.final_stage)?),
-        (Some(r), None) => {
-            let pair = final_pair(source, target, voxel, r, cfg.final_stage)?;
-            Some(refine_final(&pair, &start, r, cfg.final_stage)?)
+        (Some(r), pair) => {
+            let pair =
+                pair.unwrap_or_else(|| final_pair(source, target, voxel, r, cfg.final_stage));
+            Some(refine_final(&pair?, &start, r, cfg.final_stage)?)
         }
         (None, _) => None,
     };
@@ -502,6 +453,7 @@ fn register_in_pool(
         ambiguous,
         warnings,
         search: coarse,
+        first_look,
         verification,
         refine: refined,
         refine_cell: cfg.final_stage.cell_voxels * voxel,
@@ -512,6 +464,111 @@ fn register_in_pool(
             total_ms: ms(t0),
         },
     })
+}
+
+/// What the search and the verification found; `rest_ms`: the wall time of the search after
+/// the first look.
+struct Found {
+    coarse: SearchResult,
+    verification: Option<Verification>,
+    report: Option<FirstLookReport>,
+    rest_ms: f64,
+}
+
+/// The first look's verification, and where it does not settle the pair, the rest of the
+/// search and the verification of every candidate (reusing the first look's ICP runs).
+fn settle(
+    (source, target): (&Cloud, &Cloud),
+    running: Search<'_, '_>,
+    first: Option<SearchResult>,
+    ready: Option<&VerifyReady>,
+    look: Option<FirstLook>,
+    search: &SearchConfig,
+    cfg: &RegistrationConfig,
+) -> Result<Found> {
+    let mut stages = FirstStages::default();
+    let mut report = None;
+    if let (Some(first), Some(look), Some(v), Some(ready)) =
+        (first, look, cfg.verify.as_ref(), ready)
+    {
+        // The user's cap on the hypotheses verified holds for the first look too.
+        let pass = VerifyPass::FirstLook(look.hypotheses.min(v.max_hypotheses));
+        let inputs = VerifyInputs::new(source, target, &first, search);
+        let verification = verify_hypotheses(&inputs, ready, cfg, v, pass, &mut stages)?;
+        let judged = look.judge(&verification, look.rotations, v);
+        if judged.accepted {
+            return Ok(Found {
+                coarse: first,
+                verification: Some(verification),
+                report: Some(judged),
+                rest_ms: 0.0,
+            });
+        }
+        report = Some(judged);
+    }
+    let t_rest = Instant::now();
+    let coarse = running.complete()?;
+    let rest_ms = ms(t_rest);
+    let verification = match (&cfg.verify, ready) {
+        (Some(v), Some(ready)) => {
+            let inputs = VerifyInputs::new(source, target, &coarse, search);
+            let pass = VerifyPass::All;
+            Some(verify_hypotheses(
+                &inputs,
+                ready,
+                cfg,
+                v,
+                pass,
+                &mut stages,
+            )?)
+        }
+        _ => None,
+    };
+    Ok(Found {
+        coarse,
+        verification,
+        report,
+        rest_ms,
+    })
+}
+
+/// The first look of `cfg`, where it applies: a coarse-to-fine search whose hypotheses are
+/// verified.
+fn first_look_of(cfg: &RegistrationConfig, search: &SearchConfig) -> Option<FirstLook> {
+    let staged = matches!(search.mode, SearchMode::CoarseToFine(_)) && cfg.verify.is_some();
+    cfg.first_look.filter(|_| staged)
+}
+
+/// The search prepared (kept in `slot`, which outlives it) and its coarse level ranked, with
+/// the first look's result when `look` asks for one.
+fn start_search<'a>(
+    slot: &'a std::sync::OnceLock<PreparedSearch<'a>>,
+    source: &'a Cloud,
+    target: &'a Cloud,
+    cfg: &'a RegistrationConfig,
+    search: &'a SearchConfig,
+    look: Option<&FirstLook>,
+) -> Result<(Search<'a, 'a>, Option<SearchResult>)> {
+    let made = PreparedSearch::new(source, target, &cfg.rotations, search)?;
+    let prepared = slot.get_or_init(|| made);
+    let mut running = prepared.start(&CpuBackend)?;
+    let first = look.map(|l| running.first_look(l.rotations)).transpose()?;
+    Ok((running, first))
+}
+
+/// The final refinement's pair when it is thinned (built beside the search): a
+/// full-resolution one (`--refine-cell 0`) of a large cloud would add its size to the
+/// search's peak memory, so it is built after.
+fn thinned_final_pair(
+    source: &Cloud,
+    target: &Cloud,
+    voxel: f64,
+    refine: Option<&RefineConfig>,
+    cfg: &RegistrationConfig,
+) -> Option<Result<PreparedPair>> {
+    refine
+        .filter(|_| cfg.final_stage.cell_voxels > 0.0)
+        .map(|r| final_pair(source, target, voxel, r, cfg.final_stage))
 }
 
 /// The pair of the final refinement: both clouds at full resolution, or thinned to cells of
@@ -550,278 +607,6 @@ fn refine_final(
         ..*r
     };
     refine_prepared(pair, start, &r)
-}
-
-/// `h` polished when the config asks for it, else `h` itself.
-fn maybe_polished(
-    source: &Cloud,
-    target: &Cloud,
-    h: &Hypothesis,
-    search: &SearchConfig,
-    cfg: &RegistrationConfig,
-) -> Result<Hypothesis> {
-    Ok(match &cfg.polish {
-        Some(p) => polish::polish(source, target, h, cfg.rotations.step_deg, search, p)?.hypothesis,
-        None => *h,
-    })
-}
-
-/// The hypotheses to verify: the winner and every distinct one whose match score is at
-/// least `margin` × the winner's, at most `max_hypotheses`; then the coarse level's
-/// hypotheses (coarse-to-fine) whose pose none of those already has.
-fn candidates(
-    coarse: &SearchResult,
-    v: &VerifyConfig,
-    agree: impl Fn(&Rigid, &Rigid) -> bool,
-) -> Vec<(Hypothesis, HypothesisLevel)> {
-    let best = coarse.hypotheses[0].match_score;
-    let n = coarse
-        .hypotheses
-        .iter()
-        .take(v.max_hypotheses.max(1))
-        .take_while(|h| best > 0 && h.match_score as f64 >= v.margin * best as f64)
-        .count()
-        .max(1);
-    let mut out: Vec<(Hypothesis, HypothesisLevel)> = coarse.hypotheses[..n]
-        .iter()
-        .map(|h| (*h, HypothesisLevel::Voxel))
-        .collect();
-    let level = coarse.stats.coarse_level.as_ref();
-    for h in level.map_or(&[][..], |l| &l.hypotheses[..]) {
-        if out.iter().all(|(o, _)| !agree(&o.transform, &h.transform)) {
-            let as_hypothesis = Hypothesis {
-                rotation_index: h.rotation_index,
-                score: h.match_score.round() as i64,
-                match_score: h.match_score.round() as i64,
-                offset: h.offset,
-                transform: h.transform,
-            };
-            out.push((as_hypothesis, HypothesisLevel::Coarse));
-        }
-    }
-    out
-}
-
-/// What the verification works on.
-struct VerifyInputs<'a> {
-    source: &'a Cloud,
-    target: &'a Cloud,
-    coarse: &'a SearchResult,
-    search: &'a SearchConfig,
-}
-
-/// The verification's structures, which depend on the clouds and the voxel only: the scorer
-/// and the thinned pair of its ICP with its trees and shape grids. Built while the search
-/// runs (see [`register_in_pool`]).
-struct VerifyReady {
-    verifier: verify::Verifier,
-    thinned: PreparedPair,
-    icp: RefineConfig,
-}
-
-impl VerifyReady {
-    fn new(
-        source: &Cloud,
-        target: &Cloud,
-        voxel: f64,
-        spacing: f64,
-        v: &VerifyConfig,
-        icp: RefineConfig,
-    ) -> Result<Self> {
-        let (verifier, thinned) = rayon::join(
-            || verify::Verifier::new(source, target, voxel, spacing, v),
-            || {
-                let cell = v.cell_voxels * voxel;
-                let pair = PreparedPair::thinned(source, target, cell, icp.neighbors, icp.epsilon)?;
-                prepare_pair(&pair, &icp);
-                Ok::<_, GgsError>(pair)
-            },
-        );
-        Ok(VerifyReady {
-            verifier,
-            thinned: thinned?,
-            icp,
-        })
-    }
-}
-
-/// Build what every refinement of `pair` with `r` starts from (trees, shape grids, and for a
-/// quantile correspondence distance the target's median k-th-neighbour distance, where its
-/// search starts); each is built on first use otherwise.
-fn prepare_pair(pair: &PreparedPair, r: &RefineConfig) {
-    pair.prepare(r.method == crate::refine::Method::Gicp);
-    if matches!(
-        r.correspondence,
-        crate::refine::CorrespondenceDistance::Quantile(_)
-    ) {
-        pair.target.median_kth_distance();
-    }
-}
-
-fn verify_hypotheses(
-    inputs: &VerifyInputs,
-    ready: VerifyReady,
-    cfg: &RegistrationConfig,
-    v: &VerifyConfig,
-) -> Result<Verification> {
-    let VerifyInputs {
-        source,
-        target,
-        coarse,
-        search,
-    } = *inputs;
-    let voxel = coarse.stats.voxel;
-    let VerifyReady {
-        verifier,
-        thinned,
-        icp,
-    } = ready;
-    let cell = v.cell_voxels * voxel;
-    // Translations compared where they put the source's centroid: `t` itself depends on the
-    // frame's origin (1° apart about an origin 4000 km away, as in UTM coordinates, is 70 km).
-    let c = source.centroid().expect("non-empty");
-    // Two poses apart: the angle between their rotations (degrees) and the distance between
-    // where they put the source's centroid.
-    let gap = |a: &Rigid, b: &Rigid| {
-        let (pa, pb) = (a.apply(&c), b.apply(&c));
-        let moved =
-            ((pa[0] - pb[0]).powi(2) + (pa[1] - pb[1]).powi(2) + (pa[2] - pb[2]).powi(2)).sqrt();
-        (rotation_angle_deg(&a.rotation, &b.rotation), moved)
-    };
-    let distinct = |a: &Rigid, b: &Rigid| {
-        let (deg, moved) = gap(a, b);
-        deg > coarse.stats.distinct_radius_deg || moved > DISTINCT_TRANSLATION_VOXELS * voxel
-    };
-    let same_pose = |a: &Rigid, b: &Rigid| {
-        let (deg, moved) = gap(a, b);
-        deg <= SAME_POSE_DEG && moved <= SAME_POSE_VOXELS * voxel
-    };
-    let todo = candidates(coarse, v, |a, b| !distinct(a, b));
-    // Every hypothesis's polish and first stage depend on its start alone: they run side by
-    // side, and the decisions that depend on the hypotheses before are then taken in order.
-    let firsts: Vec<(Hypothesis, verify::FirstStage)> = todo
-        .par_iter()
-        .map(|(h, _)| {
-            let polished = maybe_polished(source, target, h, search, cfg)?;
-            let first = verify::first_stage(&thinned, &polished.transform, &icp, v)?;
-            Ok((polished, first))
-        })
-        .collect::<Result<_>>()?;
-    let mut out: Vec<VerifiedHypothesis> = Vec::new();
-    let mut best = 0.0f64;
-    for (rank, ((h, level), (polished, first))) in todo.iter().zip(firsts).enumerate() {
-        let known = |t: &Rigid| {
-            out.iter()
-                .find(|o| !o.rejected_early && o.same_as.is_none() && same_pose(&o.transform, t))
-                .map(|o| (o.rank, o.evidence))
-        };
-        let c = verify::finish(first, &thinned, &verifier, &icp, v, best, &known)?;
-        best = best.max(c.evidence.score);
-        out.push(VerifiedHypothesis {
-            rank,
-            level: *level,
-            rotation_index: h.rotation_index,
-            match_score: h.match_score,
-            polished_match_score: polished.match_score,
-            coarse_transform: h.transform,
-            transform: c.transform,
-            evidence: c.evidence,
-            iterations: c.iterations,
-            rejected_early: c.rejected_early,
-            at_a_glance: c.at_a_glance,
-            settled: false,
-            same_as: c.same_as,
-        });
-    }
-    let finer = || {
-        PreparedPair::thinned(
-            source,
-            target,
-            v.fine_cell_voxels * voxel,
-            icp.neighbors,
-            icp.epsilon,
-        )
-    };
-    settle_contested(&mut out, &verifier, finer, &icp, v, &distinct)?;
-    // A hypothesis stopped on an earlier one's pose carries that one's evidence, settled or not
-    // (`rank` is the position in `out`).
-    for k in 0..out.len() {
-        if let Some(j) = out[k].same_as {
-            out[k].evidence = out[j].evidence;
-        }
-    }
-    let chosen = best_scoring(&out, |_| true).expect("the winner is always verified");
-    let runner_up = best_scoring(&out, |k| {
-        distinct(&out[k].transform, &out[chosen].transform)
-    });
-    Ok(Verification {
-        hypotheses: out,
-        chosen,
-        runner_up,
-        distance: verifier.distance,
-        cell,
-        score: v.score,
-    })
-}
-
-/// Index of the best-scoring hypothesis among those `eligible`; ties to the better rank.
-fn best_scoring(out: &[VerifiedHypothesis], eligible: impl Fn(usize) -> bool) -> Option<usize> {
-    (0..out.len()).filter(|&k| eligible(k)).reduce(|a, b| {
-        if out[b].evidence.score > out[a].evidence.score {
-            b
-        } else {
-            a
-        }
-    })
-}
-
-/// When two distinct poses both score at least `reject_ratio` × the best, refines each
-/// contender again on clouds thinned to the finer cells of `fine_cell_voxels` (built only
-/// then, `finer`) for `fine_iterations`, and re-scores it: on the coarser cells a right pose
-/// of a small overlap stops short (too few points where the clouds overlap) and loses to a
-/// loose look-alike (docs/pipeline.md, "Settling contested poses"). A clear pair costs
-/// nothing more.
-fn settle_contested(
-    out: &mut [VerifiedHypothesis],
-    verifier: &verify::Verifier,
-    finer: impl FnOnce() -> Result<PreparedPair>,
-    icp: &RefineConfig,
-    v: &VerifyConfig,
-    distinct: &dyn Fn(&Rigid, &Rigid) -> bool,
-) -> Result<()> {
-    if v.fine_cell_voxels <= 0.0 || v.fine_iterations == 0 {
-        return Ok(());
-    }
-    let best = out.iter().map(|h| h.evidence.score).fold(0.0, f64::max);
-    let contenders: Vec<usize> = (0..out.len())
-        .filter(|&k| {
-            !out[k].rejected_early
-                && out[k].same_as.is_none()
-                && out[k].evidence.score >= v.reject_ratio * best
-        })
-        .collect();
-    let contested = contenders.iter().any(|&a| {
-        contenders
-            .iter()
-            .any(|&b| distinct(&out[a].transform, &out[b].transform))
-    });
-    if !contested {
-        return Ok(());
-    }
-    let pair = finer()?;
-    let c = RefineConfig {
-        max_iterations: v.fine_iterations,
-        ..*icp
-    };
-    for k in contenders {
-        let r = refine_prepared_pose(&pair, &out[k].transform, &c)?;
-        let h = &mut out[k];
-        h.transform = r.transform;
-        h.evidence = verifier.evidence(&r.transform);
-        h.iterations += r.iterations;
-        h.settled = true;
-    }
-    Ok(())
 }
 
 /// Confidence, the ambiguity flag and the warnings of a result.

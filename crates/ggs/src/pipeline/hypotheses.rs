@@ -1,0 +1,478 @@
+//! The verification of a search's hypotheses, as the pipeline runs it: which hypotheses
+//! (the distinct ones at the voxel size, then the coarse level's; or the first look's few),
+//! their ICP's first stage side by side, the decisions in rank order ([`verify`]), the
+//! settling of contested poses, the choice and the runner-up.
+
+use super::polish;
+use super::verify::{self, Evidence, VerifyConfig, VerifyScore};
+use super::RegistrationConfig;
+use crate::cloud::{Cloud, Point};
+use crate::coarse::{Hypothesis, SearchConfig, SearchResult};
+use crate::error::{GgsError, Result};
+use crate::refine::{refine_prepared_pose, PreparedPair, RefineConfig};
+use crate::transform::{rotation_angle_deg, Rigid};
+use rayon::prelude::*;
+
+/// Verified poses farther apart than this many voxels in translation are distinct.
+const DISTINCT_TRANSLATION_VOXELS: f64 = 3.0;
+/// A hypothesis whose verification ICP has, at the check, brought it within this angle
+/// (degrees) and [`SAME_POSE_VOXELS`] (where the source's centroid lands) of an earlier
+/// verified pose stops there: it is on its way to the same pose.
+pub const SAME_POSE_DEG: f64 = 1.0;
+/// See [`SAME_POSE_DEG`].
+pub const SAME_POSE_VOXELS: f64 = 0.25;
+
+/// One coarse hypothesis after polish and verification.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct VerifiedHypothesis {
+    /// Position in the verified list: the voxel size's distinct hypotheses in coarse rank
+    /// order (0: the search's winner), then the coarse level's.
+    pub rank: usize,
+    /// Which level of the search proposed it.
+    pub level: HypothesisLevel,
+    pub rotation_index: usize,
+    /// Coarse match score `5·n11 − n01` at the grid rotation, and after the polish.
+    pub match_score: i64,
+    pub polished_match_score: i64,
+    #[serde(serialize_with = "crate::transform::serialize_rows")]
+    pub coarse_transform: Rigid,
+    /// After the polish and the verification's ICP.
+    #[serde(serialize_with = "crate::transform::serialize_rows")]
+    pub transform: Rigid,
+    pub evidence: Evidence,
+    pub iterations: usize,
+    pub rejected_early: bool,
+    /// Rejected on a glance at a random part of the sample (`evidence.points`), whose estimate
+    /// of the score lay far below the threshold (`verify::finish`).
+    pub at_a_glance: bool,
+    /// Refined again on finer cells because another distinct pose also survived.
+    pub settled: bool,
+    /// Stopped at the check on the pose of this earlier verified hypothesis (its `rank`),
+    /// whose evidence it carries (within [`SAME_POSE_DEG`] and [`SAME_POSE_VOXELS`]).
+    pub same_as: Option<usize>,
+}
+
+/// The level of the coarse search a hypothesis comes from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum HypothesisLevel {
+    /// The voxel size: an exact argmax (`SearchResult::hypotheses`).
+    Voxel,
+    /// The coarse level of a coarse-to-fine search (`CoarseLevel::hypotheses`).
+    Coarse,
+}
+
+/// What the verification found.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct Verification {
+    /// The verified hypotheses: the voxel size's in coarse rank order, then the coarse level's.
+    pub hypotheses: Vec<VerifiedHypothesis>,
+    /// Index into `hypotheses` of the chosen one.
+    pub chosen: usize,
+    /// Index of the best-scoring hypothesis distinct from the chosen one.
+    pub runner_up: Option<usize>,
+    /// The verification distance `D`, cloud units.
+    pub distance: f64,
+    /// ICP cell size of the verification, cloud units.
+    pub cell: f64,
+    /// How a point within `D` counted.
+    pub score: VerifyScore,
+}
+
+/// `h` polished when the config asks for it, else `h` itself.
+pub(super) fn maybe_polished(
+    source: &Cloud,
+    target: &Cloud,
+    h: &Hypothesis,
+    search: &SearchConfig,
+    cfg: &RegistrationConfig,
+) -> Result<Hypothesis> {
+    Ok(match &cfg.polish {
+        Some(p) => polish::polish(source, target, h, cfg.rotations.step_deg, search, p)?.hypothesis,
+        None => *h,
+    })
+}
+
+/// The hypotheses to verify: the winner and every distinct one whose match score is at
+/// least `margin` × the winner's, at most `max_hypotheses`; then the coarse level's
+/// hypotheses (coarse-to-fine) whose pose none of those already has.
+fn candidates(
+    coarse: &SearchResult,
+    v: &VerifyConfig,
+    agree: impl Fn(&Rigid, &Rigid) -> bool,
+) -> Vec<(Hypothesis, HypothesisLevel)> {
+    let best = coarse.hypotheses[0].match_score;
+    let n = coarse
+        .hypotheses
+        .iter()
+        .take(v.max_hypotheses.max(1))
+        .take_while(|h| best > 0 && h.match_score as f64 >= v.margin * best as f64)
+        .count()
+        .max(1);
+    let mut out: Vec<(Hypothesis, HypothesisLevel)> = coarse.hypotheses[..n]
+        .iter()
+        .map(|h| (*h, HypothesisLevel::Voxel))
+        .collect();
+    let level = coarse.stats.coarse_level.as_ref();
+    for h in level.map_or(&[][..], |l| &l.hypotheses[..]) {
+        if out.iter().all(|(o, _)| !agree(&o.transform, &h.transform)) {
+            let as_hypothesis = Hypothesis {
+                rotation_index: h.rotation_index,
+                score: h.match_score.round() as i64,
+                match_score: h.match_score.round() as i64,
+                offset: h.offset,
+                transform: h.transform,
+            };
+            out.push((as_hypothesis, HypothesisLevel::Coarse));
+        }
+    }
+    out
+}
+
+/// What the verification works on.
+pub(super) struct VerifyInputs<'a> {
+    source: &'a Cloud,
+    target: &'a Cloud,
+    coarse: &'a SearchResult,
+    search: &'a SearchConfig,
+}
+
+impl<'a> VerifyInputs<'a> {
+    pub(super) fn new(
+        source: &'a Cloud,
+        target: &'a Cloud,
+        coarse: &'a SearchResult,
+        search: &'a SearchConfig,
+    ) -> Self {
+        VerifyInputs {
+            source,
+            target,
+            coarse,
+            search,
+        }
+    }
+}
+
+/// The verification's structures, which depend on the clouds and the voxel only: the scorer
+/// and the thinned pair of its ICP with its trees and shape grids. Built while the search
+/// runs (see [`super::register`]).
+pub(super) struct VerifyReady {
+    verifier: verify::Verifier,
+    thinned: PreparedPair,
+    icp: RefineConfig,
+}
+
+impl VerifyReady {
+    pub(super) fn new(
+        source: &Cloud,
+        target: &Cloud,
+        voxel: f64,
+        spacing: f64,
+        v: &VerifyConfig,
+        icp: RefineConfig,
+    ) -> Result<Self> {
+        let (verifier, thinned) = rayon::join(
+            || verify::Verifier::new(source, target, voxel, spacing, v),
+            || {
+                let cell = v.cell_voxels * voxel;
+                let pair = PreparedPair::thinned(source, target, cell, icp.neighbors, icp.epsilon)?;
+                prepare_pair(&pair, &icp);
+                Ok::<_, GgsError>(pair)
+            },
+        );
+        Ok(VerifyReady {
+            verifier,
+            thinned: thinned?,
+            icp,
+        })
+    }
+}
+
+/// Build what every refinement of `pair` with `r` starts from (trees, shape grids, and for a
+/// quantile correspondence distance the target's median k-th-neighbour distance, where its
+/// search starts); each is built on first use otherwise.
+pub(super) fn prepare_pair(pair: &PreparedPair, r: &RefineConfig) {
+    pair.prepare(r.method == crate::refine::Method::Gicp);
+    if matches!(
+        r.correspondence,
+        crate::refine::CorrespondenceDistance::Quantile(_)
+    ) {
+        pair.target.median_kth_distance();
+    }
+}
+
+/// Which hypotheses a verification takes.
+#[derive(Debug, Clone, Copy)]
+pub(super) enum VerifyPass {
+    /// The first look's: the best this many distinct hypotheses at the voxel size, whatever
+    /// their match score, then the coarse level's (the best distinct poses over the whole
+    /// set at the coarser voxel), and no settling (a contested pair is not accepted anyway).
+    FirstLook(usize),
+    /// Every candidate ([`candidates`]), contested poses settled.
+    All,
+}
+
+/// The first stages run so far, by the hypothesis they started from: a first stage depends
+/// on its start alone ([`verify::first_stage`]), so the whole verification reuses the first
+/// look's.
+#[derive(Default)]
+pub(super) struct FirstStages {
+    done: Vec<(Rigid, Hypothesis, verify::FirstStage)>,
+}
+
+impl FirstStages {
+    fn get(&self, start: &Rigid) -> Option<(Hypothesis, verify::FirstStage)> {
+        self.done
+            .iter()
+            .find(|(s, _, _)| s == start)
+            .map(|(_, h, f)| (*h, f.clone()))
+    }
+}
+
+/// Two poses compared where they put the source's centroid: the translation `t` itself
+/// depends on the frame's origin (1° apart about an origin 4000 km away, as in UTM
+/// coordinates, is 70 km).
+struct PoseGap {
+    centroid: Point,
+    distinct_radius_deg: f64,
+    voxel: f64,
+}
+
+impl PoseGap {
+    fn new(source: &Cloud, coarse: &SearchResult) -> Self {
+        PoseGap {
+            centroid: source.centroid().expect("non-empty"),
+            distinct_radius_deg: coarse.stats.distinct_radius_deg,
+            voxel: coarse.stats.voxel,
+        }
+    }
+
+    /// The angle between the rotations (degrees) and the distance between where the poses
+    /// put the source's centroid.
+    fn gap(&self, a: &Rigid, b: &Rigid) -> (f64, f64) {
+        let (pa, pb) = (a.apply(&self.centroid), b.apply(&self.centroid));
+        let moved =
+            ((pa[0] - pb[0]).powi(2) + (pa[1] - pb[1]).powi(2) + (pa[2] - pb[2]).powi(2)).sqrt();
+        (rotation_angle_deg(&a.rotation, &b.rotation), moved)
+    }
+
+    /// More than the distinct radius or [`DISTINCT_TRANSLATION_VOXELS`] apart.
+    fn distinct(&self, a: &Rigid, b: &Rigid) -> bool {
+        let (deg, moved) = self.gap(a, b);
+        deg > self.distinct_radius_deg || moved > DISTINCT_TRANSLATION_VOXELS * self.voxel
+    }
+
+    /// Within [`SAME_POSE_DEG`] and [`SAME_POSE_VOXELS`].
+    fn same(&self, a: &Rigid, b: &Rigid) -> bool {
+        let (deg, moved) = self.gap(a, b);
+        deg <= SAME_POSE_DEG && moved <= SAME_POSE_VOXELS * self.voxel
+    }
+}
+
+impl VerifyPass {
+    /// The hypotheses this pass verifies, in order.
+    fn candidates(
+        self,
+        coarse: &SearchResult,
+        v: &VerifyConfig,
+        poses: &PoseGap,
+    ) -> Vec<(Hypothesis, HypothesisLevel)> {
+        let agree = |a: &Rigid, b: &Rigid| !poses.distinct(a, b);
+        match self {
+            // Below the margin too: a verified alternative, even a poor one, is what tells a
+            // clear pair from an unclear one.
+            VerifyPass::FirstLook(count) => {
+                let first = VerifyConfig {
+                    margin: 0.0,
+                    max_hypotheses: count,
+                    ..*v
+                };
+                candidates(coarse, &first, agree)
+            }
+            VerifyPass::All => candidates(coarse, v, agree),
+        }
+    }
+}
+
+/// Verify the hypotheses `pass` takes from `inputs.coarse` (see the module documentation).
+pub(super) fn verify_hypotheses(
+    inputs: &VerifyInputs,
+    ready: &VerifyReady,
+    cfg: &RegistrationConfig,
+    v: &VerifyConfig,
+    pass: VerifyPass,
+    stages: &mut FirstStages,
+) -> Result<Verification> {
+    let poses = PoseGap::new(inputs.source, inputs.coarse);
+    let todo = pass.candidates(inputs.coarse, v, &poses);
+    let firsts = first_stages(inputs, ready, cfg, v, &todo, stages)?;
+    let mut out = decide_in_order(ready, v, &todo, firsts, &poses)?;
+    if matches!(pass, VerifyPass::All) {
+        let finer = || {
+            let cell = v.fine_cell_voxels * inputs.coarse.stats.voxel;
+            let icp = &ready.icp;
+            PreparedPair::thinned(
+                inputs.source,
+                inputs.target,
+                cell,
+                icp.neighbors,
+                icp.epsilon,
+            )
+        };
+        let distinct = |a: &Rigid, b: &Rigid| poses.distinct(a, b);
+        settle_contested(&mut out, &ready.verifier, finer, &ready.icp, v, &distinct)?;
+    }
+    // A hypothesis stopped on an earlier one's pose carries that one's evidence, settled or not
+    // (`rank` is the position in `out`).
+    for k in 0..out.len() {
+        if let Some(j) = out[k].same_as {
+            out[k].evidence = out[j].evidence;
+        }
+    }
+    let chosen = best_scoring(&out, |_| true).expect("the winner is always verified");
+    let runner_up = best_scoring(&out, |k| {
+        poses.distinct(&out[k].transform, &out[chosen].transform)
+    });
+    Ok(Verification {
+        hypotheses: out,
+        chosen,
+        runner_up,
+        distance: ready.verifier.distance,
+        cell: v.cell_voxels * inputs.coarse.stats.voxel,
+        score: v.score,
+    })
+}
+
+/// Every hypothesis's polish and first stage depend on its start alone: they run side by
+/// side, or come from an earlier pass (`stages`, which keeps the new ones).
+fn first_stages(
+    inputs: &VerifyInputs,
+    ready: &VerifyReady,
+    cfg: &RegistrationConfig,
+    v: &VerifyConfig,
+    todo: &[(Hypothesis, HypothesisLevel)],
+    stages: &mut FirstStages,
+) -> Result<Vec<(Hypothesis, verify::FirstStage)>> {
+    let firsts: Vec<(Hypothesis, verify::FirstStage)> = todo
+        .par_iter()
+        .map(|(h, _)| match stages.get(&h.transform) {
+            Some(done) => Ok(done),
+            None => {
+                let VerifyInputs {
+                    source,
+                    target,
+                    search,
+                    ..
+                } = *inputs;
+                let polished = maybe_polished(source, target, h, search, cfg)?;
+                let first =
+                    verify::first_stage(&ready.thinned, &polished.transform, &ready.icp, v)?;
+                Ok((polished, first))
+            }
+        })
+        .collect::<Result<_>>()?;
+    for ((h, _), (polished, first)) in todo.iter().zip(&firsts) {
+        if stages.get(&h.transform).is_none() {
+            stages.done.push((h.transform, *polished, first.clone()));
+        }
+    }
+    Ok(firsts)
+}
+
+/// The decisions that depend on the hypotheses before ([`verify::finish`]), in order.
+fn decide_in_order(
+    ready: &VerifyReady,
+    v: &VerifyConfig,
+    todo: &[(Hypothesis, HypothesisLevel)],
+    firsts: Vec<(Hypothesis, verify::FirstStage)>,
+    poses: &PoseGap,
+) -> Result<Vec<VerifiedHypothesis>> {
+    let mut out: Vec<VerifiedHypothesis> = Vec::new();
+    let mut best = 0.0f64;
+    for (rank, ((h, level), (polished, first))) in todo.iter().zip(firsts).enumerate() {
+        let known = |t: &Rigid| {
+            out.iter()
+                .find(|o| !o.rejected_early && o.same_as.is_none() && poses.same(&o.transform, t))
+                .map(|o| (o.rank, o.evidence))
+        };
+        let (thinned, verifier, icp) = (&ready.thinned, &ready.verifier, &ready.icp);
+        let c = verify::finish(first, thinned, verifier, icp, v, best, &known)?;
+        best = best.max(c.evidence.score);
+        out.push(VerifiedHypothesis {
+            rank,
+            level: *level,
+            rotation_index: h.rotation_index,
+            match_score: h.match_score,
+            polished_match_score: polished.match_score,
+            coarse_transform: h.transform,
+            transform: c.transform,
+            evidence: c.evidence,
+            iterations: c.iterations,
+            rejected_early: c.rejected_early,
+            at_a_glance: c.at_a_glance,
+            settled: false,
+            same_as: c.same_as,
+        });
+    }
+    Ok(out)
+}
+
+/// Index of the best-scoring hypothesis among those `eligible`; ties to the better rank.
+fn best_scoring(out: &[VerifiedHypothesis], eligible: impl Fn(usize) -> bool) -> Option<usize> {
+    (0..out.len()).filter(|&k| eligible(k)).reduce(|a, b| {
+        if out[b].evidence.score > out[a].evidence.score {
+            b
+        } else {
+            a
+        }
+    })
+}
+
+/// When two distinct poses both score at least `reject_ratio` × the best, refines each
+/// contender again on clouds thinned to the finer cells of `fine_cell_voxels` (built only
+/// then, `finer`) for `fine_iterations`, and re-scores it: on the coarser cells a right pose
+/// of a small overlap stops short (too few points where the clouds overlap) and loses to a
+/// loose look-alike (docs/pipeline.md, "Settling contested poses"). A clear pair costs
+/// nothing more.
+fn settle_contested(
+    out: &mut [VerifiedHypothesis],
+    verifier: &verify::Verifier,
+    finer: impl FnOnce() -> Result<PreparedPair>,
+    icp: &RefineConfig,
+    v: &VerifyConfig,
+    distinct: &dyn Fn(&Rigid, &Rigid) -> bool,
+) -> Result<()> {
+    if v.fine_cell_voxels <= 0.0 || v.fine_iterations == 0 {
+        return Ok(());
+    }
+    let best = out.iter().map(|h| h.evidence.score).fold(0.0, f64::max);
+    let contenders: Vec<usize> = (0..out.len())
+        .filter(|&k| {
+            !out[k].rejected_early
+                && out[k].same_as.is_none()
+                && out[k].evidence.score >= v.reject_ratio * best
+        })
+        .collect();
+    let contested = contenders.iter().any(|&a| {
+        contenders
+            .iter()
+            .any(|&b| distinct(&out[a].transform, &out[b].transform))
+    });
+    if !contested {
+        return Ok(());
+    }
+    let pair = finer()?;
+    let c = RefineConfig {
+        max_iterations: v.fine_iterations,
+        ..*icp
+    };
+    for k in contenders {
+        let r = refine_prepared_pose(&pair, &out[k].transform, &c)?;
+        let h = &mut out[k];
+        h.transform = r.transform;
+        h.evidence = verifier.evidence(&r.transform);
+        h.iterations += r.iterations;
+        h.settled = true;
+    }
+    Ok(())
+}
