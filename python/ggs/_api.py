@@ -217,8 +217,8 @@ class Result:
         """What the first look did (None where it did not run: ``preset="paper"``,
         ``first_look=False``, no verification, :func:`refine`): ``rotations`` scored at the
         voxel size, hypotheses ``verified``, the chosen pose's ``score``, the best distinct
-        ``runner_up_score`` (or None), and whether it was ``accepted`` (the whole search was
-        then not run)."""
+        ``runner_up_score`` (or None), the least score it takes (``accept_score``), and
+        whether it was ``accepted`` (the whole search was then not run)."""
         return self._fields["first_look"]  # type: ignore[no-any-return]
 
     @property

@@ -96,6 +96,7 @@ fn first_look_dict<'py>(
     d.set_item("verified", f.verified)?;
     d.set_item("score", f.score)?;
     d.set_item("runner_up_score", f.runner_up_score)?;
+    d.set_item("accept_score", f.accept_score)?;
     d.set_item("accepted", f.accepted)?;
     Ok(d)
 }
@@ -147,7 +148,10 @@ pub fn result_dict<'py>(
         },
     )?;
     let look = registration.and_then(|r| r.first_look);
-    d.set_item("first_look", look.map(|f| first_look_dict(py, &f)).transpose()?)?;
+    d.set_item(
+        "first_look",
+        look.map(|f| first_look_dict(py, &f)).transpose()?,
+    )?;
     let t = PyDict::new(py);
     for k in TIMING_KEYS {
         t.set_item(k, 0.0)?;

@@ -306,9 +306,11 @@ fn print_summary(reg: &Registration, preset: &str, read_ms: f64, total_ms: f64) 
             f.runner_up_score
                 .map_or("none".to_string(), |r| format!("{r:.3}")),
             if f.accepted {
-                "taken (the whole search was not needed)"
+                "taken (the whole search was not needed)".to_string()
+            } else if f.score < f.accept_score {
+                format!("below {}, the whole search ran", f.accept_score)
             } else {
-                "not clear, the whole search ran"
+                "a distinct pose scored too close to it, the whole search ran".to_string()
             }
         );
     }

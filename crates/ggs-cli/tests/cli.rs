@@ -324,8 +324,14 @@ fn the_default_summary_shows_the_verified_hypotheses_and_the_confidence() {
     assert!(text.contains(" (coarse level) "), "{text}");
     // This clear pair is settled by the first look, which says so.
     assert!(text.contains("first look  16 rotations"), "{text}");
-    assert!(text.contains("taken (the whole search was not needed)"), "{text}");
-    assert!(text.contains("(first look, no neighbours; winner ranked"), "{text}");
+    assert!(
+        text.contains("taken (the whole search was not needed)"),
+        "{text}"
+    );
+    assert!(
+        text.contains("(first look, no neighbours; winner ranked"),
+        "{text}"
+    );
     let out = register_pair(&[
         "--max-hypotheses",
         "4",
@@ -364,7 +370,10 @@ fn the_default_pipeline_is_bit_identical_for_any_thread_count() {
     assert_eq!(a["first_look"]["accepted"], true);
     assert_eq!(a["transform"], b["transform"]);
     assert_eq!(a["verification"], b["verification"]);
-    let (a, b) = (run("1", &["--no-first-look"]), run("2", &["--no-first-look"]));
+    let (a, b) = (
+        run("1", &["--no-first-look"]),
+        run("2", &["--no-first-look"]),
+    );
     assert!(a["first_look"].is_null());
     assert_eq!(a["transform"], b["transform"]);
     // Every distinct hypothesis of the search, up to the default 32.

@@ -1,12 +1,17 @@
 //! The first look: before the whole coarse-to-fine search, score only the coarse level's
-//! best few rotations at the voxel size, verify their distinct hypotheses, and stop there
-//! when the best of them is clearly right.
+//! best few rotations at the voxel size, verify the best of them together with the coarse
+//! level's own distinct poses, and stop there when that pose is clearly right.
 //!
 //! Most of a pair's time goes to scoring the kept rotations' neighbours at the voxel size
 //! and to verifying a dozen or more hypotheses, which the pairs that need them need (a
 //! low-overlap view whose right pose ranks low, a scene with look-alike poses). A pair whose
-//! coarse level ranks the right rotation near the top does not: one of the first few
-//! hypotheses converges under ICP and explains both clouds far better than anything else.
+//! coarse level ranks the right rotation near the top does not: its first hypothesis
+//! converges under ICP and explains both clouds far better than any other pose.
+//!
+//! The alternatives it is weighed against are the coarse level's best distinct poses
+//! ([`CoarseToFine::hypotheses`](crate::coarse::CoarseToFine::hypotheses), 8 by default):
+//! the best poses over the whole rotation set at the coarser voxel, each verified as the
+//! whole verification would (they are among its candidates too).
 //!
 //! # The rule
 //! The first look accepts its chosen pose when
@@ -17,10 +22,13 @@
 //!   look-alike competes (a scene whose floor dominates, slid along the floor, scores alike
 //!   at several poses).
 //!
-//! Otherwise the search goes on exactly as without the first look and the verification
-//! takes every hypothesis; the first look's ICP runs are reused where a hypothesis starts
-//! from the same pose, so the result is the one the whole search gives, bit for bit, and
-//! the first look costs only what it verified that the whole search does not.
+//! A first pose below the score threshold ends the first look at once (the others' first
+//! ICP stages, run side by side with it, are kept). Otherwise the search goes on exactly as
+//! without the first look and the verification takes every hypothesis; the first look's ICP
+//! runs are reused where a hypothesis starts from the same pose (and the first hypothesis's
+//! whole decision where both passes start from the same pose), so the result is the one the
+//! whole search gives, bit for bit, and the first look costs only what it verified that the
+//! whole search does not.
 //!
 //! Measured before it became the default (docs/pipeline.md, "The first look"): on every
 //! benchmark of the project no pair was settled on a wrong pose, and no success was lost;
@@ -35,7 +43,7 @@ use super::Verification;
 pub struct FirstLook {
     /// Rotations scored at the voxel size: the best of the coarse level, no neighbours.
     pub rotations: usize,
-    /// Distinct hypotheses of those verified.
+    /// Distinct hypotheses of those verified (the best first), before the coarse level's.
     pub hypotheses: usize,
     /// The least verification score accepted.
     pub accept_score: f64,
@@ -62,6 +70,8 @@ pub struct FirstLookReport {
     pub score: f64,
     /// Best score of a pose distinct from the chosen one, if any was verified.
     pub runner_up_score: Option<f64>,
+    /// The least score it accepts ([`FirstLook::accept_score`]).
+    pub accept_score: f64,
     /// The pose was taken and the search stopped there.
     pub accepted: bool,
 }
@@ -78,6 +88,7 @@ impl FirstLook {
             verified: v.hypotheses.len(),
             score,
             runner_up_score,
+            accept_score: self.accept_score,
             accepted: score >= self.accept_score && clear,
         }
     }

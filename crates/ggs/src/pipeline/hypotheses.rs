@@ -204,20 +204,24 @@ pub(super) fn prepare_pair(pair: &PreparedPair, r: &RefineConfig) {
 /// Which hypotheses a verification takes.
 #[derive(Debug, Clone, Copy)]
 pub(super) enum VerifyPass {
-    /// The first look's: the best this many distinct hypotheses at the voxel size, whatever
+    /// The first look's: the best `count` distinct hypotheses at the voxel size, whatever
     /// their match score, then the coarse level's (the best distinct poses over the whole
     /// set at the coarser voxel), and no settling (a contested pair is not accepted anyway).
-    FirstLook(usize),
+    /// Where none of those at the voxel size scores `gate` (the first look cannot accept
+    /// any), the coarse level's are not decided.
+    FirstLook { count: usize, gate: f64 },
     /// Every candidate ([`candidates`]), contested poses settled.
     All,
 }
 
-/// The first stages run so far, by the hypothesis they started from: a first stage depends
-/// on its start alone ([`verify::first_stage`]), so the whole verification reuses the first
-/// look's.
+/// The ICP runs of a pair's verification passes, kept for the next pass: the first stages by
+/// the hypothesis they started from (a first stage depends on its start alone:
+/// [`verify::first_stage`]), and the decision on a pass's first hypothesis (nothing to beat
+/// and no pose before it, so a pure function of its start too).
 #[derive(Default)]
 pub(super) struct FirstStages {
     done: Vec<(Rigid, Hypothesis, verify::FirstStage)>,
+    leader: Option<(Rigid, verify::Checked)>,
 }
 
 impl FirstStages {
@@ -281,7 +285,7 @@ impl VerifyPass {
         match self {
             // Below the margin too: a verified alternative, even a poor one, is what tells a
             // clear pair from an unclear one.
-            VerifyPass::FirstLook(count) => {
+            VerifyPass::FirstLook { count, .. } => {
                 let first = VerifyConfig {
                     margin: 0.0,
                     max_hypotheses: count,
@@ -305,8 +309,31 @@ pub(super) fn verify_hypotheses(
 ) -> Result<Verification> {
     let poses = PoseGap::new(inputs.source, inputs.coarse);
     let todo = pass.candidates(inputs.coarse, v, &poses);
-    let firsts = first_stages(inputs, ready, cfg, v, &todo, stages)?;
-    let mut out = decide_in_order(ready, v, &todo, firsts, &poses)?;
+    let mut firsts = first_stages(inputs, ready, cfg, v, &todo, stages)?;
+    let mut out = Vec::new();
+    let mut from = 0;
+    if let VerifyPass::FirstLook { gate, .. } = pass {
+        // The first look settles nothing when none of its own poses (those at the voxel
+        // size) scores the gate: the decisions on the coarse level's (their checks, second
+        // runs, scores) are left to the whole verification, which reuses their first stages.
+        from = todo
+            .iter()
+            .take_while(|(_, level)| *level == HypothesisLevel::Voxel)
+            .count();
+        let rest = firsts.split_off(from);
+        let decide = Decide { floor: gate };
+        decide.in_order(ready, v, &todo[..from], firsts, &poses, stages, &mut out)?;
+        firsts = rest;
+        if out.iter().all(|h| h.evidence.score < gate) {
+            firsts.clear();
+        }
+    }
+    let todo_rest = &todo[from..from + firsts.len()];
+    let floor = match pass {
+        VerifyPass::FirstLook { gate, .. } => gate,
+        VerifyPass::All => 0.0,
+    };
+    Decide { floor }.in_order(ready, v, todo_rest, firsts, &poses, stages, &mut out)?;
     if matches!(pass, VerifyPass::All) {
         let finer = || {
             let cell = v.fine_cell_voxels * inputs.coarse.stats.voxel;
@@ -379,42 +406,72 @@ fn first_stages(
     Ok(firsts)
 }
 
-/// The decisions that depend on the hypotheses before ([`verify::finish`]), in order.
-fn decide_in_order(
-    ready: &VerifyReady,
-    v: &VerifyConfig,
-    todo: &[(Hypothesis, HypothesisLevel)],
-    firsts: Vec<(Hypothesis, verify::FirstStage)>,
-    poses: &PoseGap,
-) -> Result<Vec<VerifiedHypothesis>> {
-    let mut out: Vec<VerifiedHypothesis> = Vec::new();
-    let mut best = 0.0f64;
-    for (rank, ((h, level), (polished, first))) in todo.iter().zip(firsts).enumerate() {
-        let known = |t: &Rigid| {
-            out.iter()
-                .find(|o| !o.rejected_early && o.same_as.is_none() && poses.same(&o.transform, t))
-                .map(|o| (o.rank, o.evidence))
-        };
-        let (thinned, verifier, icp) = (&ready.thinned, &ready.verifier, &ready.icp);
-        let c = verify::finish(first, thinned, verifier, icp, v, best, &known)?;
-        best = best.max(c.evidence.score);
-        out.push(VerifiedHypothesis {
-            rank,
-            level: *level,
-            rotation_index: h.rotation_index,
-            match_score: h.match_score,
-            polished_match_score: polished.match_score,
-            coarse_transform: h.transform,
-            transform: c.transform,
-            evidence: c.evidence,
-            iterations: c.iterations,
-            rejected_early: c.rejected_early,
-            at_a_glance: c.at_a_glance,
-            settled: false,
-            same_as: c.same_as,
-        });
+/// How a pass takes its decisions.
+struct Decide {
+    /// The least "best so far" a check compares with: the first look only looks for a pose
+    /// scoring its gate, so a hypothesis below `reject_ratio` × the gate at its check is
+    /// dropped there, as the whole verification drops one below `reject_ratio` × the best so
+    /// far (0 in the whole verification).
+    floor: f64,
+}
+
+impl Decide {
+    /// The decisions that depend on the hypotheses before ([`verify::finish`]), in order,
+    /// appended to `out` (those decided before). A pass's first is taken from `stages` when an
+    /// earlier pass decided the same start first and did not drop it at its check (its decision
+    /// is then the one a pass with no floor takes).
+    #[allow(clippy::too_many_arguments)]
+    fn in_order(
+        &self,
+        ready: &VerifyReady,
+        v: &VerifyConfig,
+        todo: &[(Hypothesis, HypothesisLevel)],
+        firsts: Vec<(Hypothesis, verify::FirstStage)>,
+        poses: &PoseGap,
+        stages: &mut FirstStages,
+        out: &mut Vec<VerifiedHypothesis>,
+    ) -> Result<()> {
+        let mut best = out.iter().map(|h| h.evidence.score).fold(0.0f64, f64::max);
+        for ((h, level), (polished, first)) in todo.iter().zip(firsts) {
+            let rank = out.len();
+            let known = |t: &Rigid| {
+                out.iter()
+                    .find(|o| {
+                        !o.rejected_early && o.same_as.is_none() && poses.same(&o.transform, t)
+                    })
+                    .map(|o| (o.rank, o.evidence))
+            };
+            let (thinned, verifier, icp) = (&ready.thinned, &ready.verifier, &ready.icp);
+            let leader = stages
+                .leader
+                .filter(|(start, _)| rank == 0 && *start == h.transform);
+            let bar = best.max(self.floor);
+            let c = match leader {
+                Some((_, c)) => c,
+                None => verify::finish(first, thinned, verifier, icp, v, bar, &known)?,
+            };
+            if rank == 0 && !c.rejected_early {
+                stages.leader = Some((h.transform, c));
+            }
+            best = best.max(c.evidence.score);
+            out.push(VerifiedHypothesis {
+                rank,
+                level: *level,
+                rotation_index: h.rotation_index,
+                match_score: h.match_score,
+                polished_match_score: polished.match_score,
+                coarse_transform: h.transform,
+                transform: c.transform,
+                evidence: c.evidence,
+                iterations: c.iterations,
+                rejected_early: c.rejected_early,
+                at_a_glance: c.at_a_glance,
+                settled: false,
+                same_as: c.same_as,
+            });
+        }
+        Ok(())
     }
-    Ok(out)
 }
 
 /// Index of the best-scoring hypothesis among those `eligible`; ties to the better rank.

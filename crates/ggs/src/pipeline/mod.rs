@@ -492,7 +492,10 @@ fn settle(
         (first, look, cfg.verify.as_ref(), ready)
     {
         // The user's cap on the hypotheses verified holds for the first look too.
-        let pass = VerifyPass::FirstLook(look.hypotheses.min(v.max_hypotheses));
+        let pass = VerifyPass::FirstLook {
+            count: look.hypotheses.min(v.max_hypotheses),
+            gate: look.accept_score,
+        };
         let inputs = VerifyInputs::new(source, target, &first, search);
         let verification = verify_hypotheses(&inputs, ready, cfg, v, pass, &mut stages)?;
         let judged = look.judge(&verification, look.rotations, v);
