@@ -204,8 +204,8 @@ pub(super) fn prepare_pair(pair: &PreparedPair, r: &RefineConfig) {
 /// Which hypotheses a verification takes.
 #[derive(Debug, Clone, Copy)]
 pub(super) enum VerifyPass {
-    /// The first look's: the best `count` distinct hypotheses at the voxel size, whatever
-    /// their match score, then the coarse level's (the best distinct poses over the whole
+    /// The first look's: the whole verification's candidates ([`candidates`]) with at most
+    /// `count` at the voxel size, then the coarse level's (the best distinct poses over the whole
     /// set at the coarser voxel), and no settling (a contested pair is not accepted anyway).
     /// Where none of those at the voxel size scores `gate` (the first look cannot accept
     /// any), the coarse level's are not decided.
@@ -283,12 +283,11 @@ impl VerifyPass {
     ) -> Vec<(Hypothesis, HypothesisLevel)> {
         let agree = |a: &Rigid, b: &Rigid| !poses.distinct(a, b);
         match self {
-            // Below the margin too: a verified alternative, even a poor one, is what tells a
-            // clear pair from an unclear one.
+            // The whole verification's rule, at most `count` at the voxel size: the coarse
+            // level's poses are the alternatives that tell a clear pair from an unclear one.
             VerifyPass::FirstLook { count, .. } => {
                 let first = VerifyConfig {
-                    margin: 0.0,
-                    max_hypotheses: count,
+                    max_hypotheses: count.min(v.max_hypotheses),
                     ..*v
                 };
                 candidates(coarse, &first, agree)
@@ -445,7 +444,10 @@ impl Decide {
             let leader = stages
                 .leader
                 .filter(|(start, _)| rank == 0 && *start == h.transform);
-            let bar = best.max(self.floor);
+            let bar = verify::Bar {
+            best,
+            floor: self.floor,
+        };
             let c = match leader {
                 Some((_, c)) => c,
                 None => verify::finish(first, thinned, verifier, icp, v, bar, &known)?,

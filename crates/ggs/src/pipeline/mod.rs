@@ -491,9 +491,8 @@ fn settle(
     if let (Some(first), Some(look), Some(v), Some(ready)) =
         (first, look, cfg.verify.as_ref(), ready)
     {
-        // The user's cap on the hypotheses verified holds for the first look too.
         let pass = VerifyPass::FirstLook {
-            count: look.hypotheses.min(v.max_hypotheses),
+            count: look.hypotheses,
             gate: look.accept_score,
         };
         let inputs = VerifyInputs::new(source, target, &first, search);

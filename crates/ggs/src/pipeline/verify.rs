@@ -438,15 +438,22 @@ pub fn check(
     known: &dyn Fn(&Rigid) -> Option<(usize, Evidence)>,
 ) -> Result<Checked> {
     let first = first_stage(thinned, start, refine_cfg, cfg)?;
-    finish(
-        first,
-        thinned,
-        verifier,
-        refine_cfg,
-        cfg,
-        best_so_far,
-        known,
-    )
+    let bar = Bar {
+        best: best_so_far,
+        floor: 0.0,
+    };
+    finish(first, thinned, verifier, refine_cfg, cfg, bar, known)
+}
+
+/// What a hypothesis is checked against: `reject_ratio` × the larger of the best score so
+/// far and a floor. The floor (the first look's accept score; 0 in the whole verification)
+/// drops a hypothesis that cannot be accepted, but only at a glance while there is no best
+/// score yet: the full score at the check is then not worth its cost, since the second run's
+/// score replaces it.
+#[derive(Debug, Clone, Copy)]
+pub struct Bar {
+    pub best: f64,
+    pub floor: f64,
 }
 
 /// The rest of [`check`] after its first stage: the decision at the check and, for a
@@ -455,7 +462,7 @@ pub fn check(
 /// The decision first glances at the evidence: a fixed random part of each sample
 /// ([`Verifier::glance`]; no glance when the samples are too small, nor when there is
 /// nothing to reject against). A hypothesis whose glance, raised by
-/// [`GLANCE_SIGMAS`] standard errors, still scores below `reject_ratio × best_so_far` is
+/// [`GLANCE_SIGMAS`] standard errors, still scores below `reject_ratio` × the [`Bar`] is
 /// rejected with the glance as its evidence (`points` says so), without the full sums. The
 /// glance is the mean of the same per-point weights over a part of the same points drawn
 /// at random. Measured on the 4167 checks of the generated FP-O-H and FP-O-M pairs (50 000
@@ -469,7 +476,7 @@ pub fn finish(
     verifier: &Verifier,
     refine_cfg: &RefineConfig,
     cfg: &VerifyConfig,
-    best_so_far: f64,
+    bar: Bar,
     known: &dyn Fn(&Rigid) -> Option<(usize, Evidence)>,
 ) -> Result<Checked> {
     let FirstStage { run: first } = first;
@@ -484,16 +491,17 @@ pub fn finish(
             same_as: Some(k),
         });
     }
-    let threshold = cfg.reject_ratio * best_so_far;
+    let threshold = cfg.reject_ratio * bar.best.max(bar.floor);
     let goes_on = more_iterations(&first, cfg);
-    // With nothing to beat (the first hypothesis: a score is never below 0) and a second run
-    // to come, the score at the check would decide nothing and be replaced: skipped.
-    let nothing_to_decide = threshold <= 0.0 && goes_on;
+    let at_a_glance = (threshold > 0.0)
+        .then(|| verifier.glance(&first.transform))
+        .flatten()
+        .filter(|g| g.score + GLANCE_SIGMAS * g.standard_error() < threshold);
+    // With no score to beat (the first hypothesis: a score is never below 0) and a second run
+    // to come, the score at the check would decide nothing and be replaced: skipped, unless
+    // a glance already put it below the floor.
+    let nothing_to_decide = bar.best <= 0.0 && goes_on && at_a_glance.is_none();
     if !nothing_to_decide {
-        let at_a_glance = (threshold > 0.0)
-            .then(|| verifier.glance(&first.transform))
-            .flatten()
-            .filter(|g| g.score + GLANCE_SIGMAS * g.standard_error() < threshold);
         let evidence = at_a_glance.unwrap_or_else(|| verifier.evidence(&first.transform));
         let rejected = evidence.score < threshold;
         if rejected || !goes_on {
