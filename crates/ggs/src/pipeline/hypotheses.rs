@@ -309,30 +309,26 @@ pub(super) fn verify_hypotheses(
     let poses = PoseGap::new(inputs.source, inputs.coarse);
     let todo = pass.candidates(inputs.coarse, v, &poses);
     let mut firsts = first_stages(inputs, ready, cfg, v, &todo, stages)?;
-    let mut out = Vec::new();
-    let mut from = 0;
-    if let VerifyPass::FirstLook { gate, .. } = pass {
-        // The first look settles nothing when none of its own poses (those at the voxel
-        // size) scores the gate: the decisions on the coarse level's (their checks, second
-        // runs, scores) are left to the whole verification, which reuses their first stages.
-        from = todo
-            .iter()
-            .take_while(|(_, level)| *level == HypothesisLevel::Voxel)
-            .count();
-        let rest = firsts.split_off(from);
-        let decide = Decide { floor: gate };
-        decide.in_order(ready, v, &todo[..from], firsts, &poses, stages, &mut out)?;
-        firsts = rest;
-        if out.iter().all(|h| h.evidence.score < gate) {
-            firsts.clear();
+    let (own, decide) = match pass {
+        // The first look decides its own poses (those at the voxel size) first; when none
+        // scores the gate it settles nothing, and the decisions on the coarse level's (their
+        // checks, second runs, scores) are left to the whole verification, which reuses
+        // their first stages.
+        VerifyPass::FirstLook { gate, .. } => {
+            let own = todo
+                .iter()
+                .take_while(|(_, level)| *level == HypothesisLevel::Voxel)
+                .count();
+            (own, Decide { floor: gate })
         }
-    }
-    let todo_rest = &todo[from..from + firsts.len()];
-    let floor = match pass {
-        VerifyPass::FirstLook { gate, .. } => gate,
-        VerifyPass::All => 0.0,
+        VerifyPass::All => (todo.len(), Decide { floor: 0.0 }),
     };
-    Decide { floor }.in_order(ready, v, todo_rest, firsts, &poses, stages, &mut out)?;
+    let others = firsts.split_off(own);
+    let mut out = Vec::new();
+    decide.in_order(ready, v, &todo[..own], firsts, &poses, stages, &mut out)?;
+    if out.iter().any(|h| h.evidence.score >= decide.floor) {
+        decide.in_order(ready, v, &todo[own..], others, &poses, stages, &mut out)?;
+    }
     if matches!(pass, VerifyPass::All) {
         let finer = || {
             let cell = v.fine_cell_voxels * inputs.coarse.stats.voxel;
@@ -445,9 +441,9 @@ impl Decide {
                 .leader
                 .filter(|(start, _)| rank == 0 && *start == h.transform);
             let bar = verify::Bar {
-            best,
-            floor: self.floor,
-        };
+                best,
+                floor: self.floor,
+            };
             let c = match leader {
                 Some((_, c)) => c,
                 None => verify::finish(first, thinned, verifier, icp, v, bar, &known)?,
