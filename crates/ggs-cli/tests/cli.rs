@@ -613,6 +613,10 @@ fn report_is_one_self_contained_page_written_atomically() {
     ] {
         assert!(html.contains(section), "{section}");
     }
+    assert!(
+        html.contains("First look: the coarse level's best 16 rotations"),
+        "the first look's line"
+    );
     assert_eq!(
         html.matches("data:image/png;base64,").count(),
         6,

@@ -170,6 +170,7 @@ fn angle(a: &Rigid, b: &Rigid) -> f64 {
 /// The hypotheses: verified ones with their evidence, else the coarse search's list.
 fn hypotheses_html(reg: &Registration) -> String {
     let mut s = String::from("<h2>Hypotheses</h2>");
+    s += &first_look_html(reg);
     match &reg.verification {
         Some(v) => s += &verified_table(v),
         None => {
@@ -216,6 +217,29 @@ fn hypotheses_html(reg: &Registration) -> String {
          chosen one.",
     );
     s
+}
+
+/// What the first look did, as one line (nothing where it did not run).
+fn first_look_html(reg: &Registration) -> String {
+    let Some(f) = &reg.first_look else {
+        return String::new();
+    };
+    let runner_up = f.runner_up_score.map_or("none".into(), |r| num(r, 3));
+    let outcome = if f.accepted {
+        "it settled the pair: the hypotheses below are its own, the whole search did not run"
+    } else {
+        "it did not settle the pair: the hypotheses below are the whole search's"
+    };
+    format!(
+        "<p class=\"sub\">First look: the coarse level's best {} rotations at the voxel size, \
+         {} hypotheses verified, best {}, distinct runner-up {} (taken at {} or more with no \
+         distinct pose at 0.6 of it); {outcome}.</p>",
+        f.rotations,
+        f.verified,
+        num(f.score, 3),
+        runner_up,
+        num(f.accept_score, 2)
+    )
 }
 
 fn verified_table(v: &Verification) -> String {

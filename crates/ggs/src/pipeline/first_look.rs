@@ -1,6 +1,6 @@
 //! The first look: before the whole coarse-to-fine search, score only the coarse level's
-//! best few rotations at the voxel size, verify the best of them together with the coarse
-//! level's own distinct poses, and stop there when that pose is clearly right.
+//! best few rotations at the voxel size, verify their best distinct poses and then the coarse
+//! level's own distinct poses, and stop there when one pose is clearly right.
 //!
 //! Most of a pair's time goes to scoring the kept rotations' neighbours at the voxel size
 //! and to verifying a dozen or more hypotheses, which the pairs that need them need (a
@@ -22,8 +22,10 @@
 //!   look-alike competes (a scene whose floor dominates, slid along the floor, scores alike
 //!   at several poses).
 //!
-//! A first pose below the score threshold ends the first look at once (the others' first
-//! ICP stages, run side by side with it, are kept). Otherwise the search goes on exactly as
+//! When none of its own poses (those at the voxel size) reaches the score threshold, the
+//! first look ends there, before deciding on the coarse level's (whose first ICP stages, run
+//! side by side with its own, are kept); its checks compare with at least the threshold
+//! ([`super::verify::Bar`]). Where it does not settle the pair, the search goes on exactly as
 //! without the first look and the verification takes every hypothesis; the first look's ICP
 //! runs are reused where a hypothesis starts from the same pose (and the first hypothesis's
 //! whole decision where both passes start from the same pose), so the result is the one the
