@@ -91,8 +91,8 @@ impl<'p> FineLevel<'p> {
         }
     }
 
-    /// The first look: the `count` best rotations of the coarse order at the voxel size, no
-    /// neighbours, no further rounds. Returns the winner among them. A later
+    /// The first look: the `count` best rotations of the coarse order at the voxel size
+    /// (`1 ≤ count ≤` the set's size), no neighbours, no further rounds. Returns the winner among them. A later
     /// [`Self::rounds`] scores only the rotations this did not (a rotation's score depends on
     /// nothing else), so the search's result after both is the one `rounds` alone gives.
     pub(super) fn first_look(
@@ -104,7 +104,6 @@ impl<'p> FineLevel<'p> {
         count: usize,
         tally: &mut Tally,
     ) -> Result<usize> {
-        let count = count.clamp(1, coarse.order().len());
         let mut wanted = coarse.order()[..count].to_vec();
         wanted.sort_unstable();
         self.score_unscored(backend, ctl, cfg.precision, wanted, tally)?;

@@ -132,6 +132,7 @@ impl Search<'_, '_> {
         })?;
         let t = Instant::now();
         let ctl = p.control();
+        let count = count.clamp(1, level.order().len());
         let winner =
             self.fine
                 .first_look(self.backend, &ctl, p.cfg, level, count, &mut self.tally)?;
@@ -140,7 +141,7 @@ impl Search<'_, '_> {
             .distinct(&ctl, p.set, p.cfg, winner, &mut self.tally)?;
         self.fine_ms += ms(t.elapsed());
         let mut level = level.clone();
-        level.kept = count.clamp(1, level.order().len());
+        level.kept = count;
         level.winner_rank = level.rank_of(winner);
         level.rounds = 0;
         self.result(picks, Some(level))

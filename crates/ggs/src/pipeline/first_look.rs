@@ -79,8 +79,9 @@ pub struct FirstLookReport {
 }
 
 impl FirstLook {
-    /// Whether `v`, the verification of the first look's hypotheses, settles the pair (see
-    /// the module documentation), with the report either way.
+    /// Whether `v`, the verification of the hypotheses of the first look's `rotations`
+    /// (those it scored), settles the pair (see the module documentation), with the report
+    /// either way.
     pub fn judge(&self, v: &Verification, rotations: usize, cfg: &VerifyConfig) -> FirstLookReport {
         let score = v.hypotheses[v.chosen].evidence.score;
         let runner_up_score = v.runner_up.map(|k| v.hypotheses[k].evidence.score);

@@ -231,6 +231,10 @@ impl FirstStages {
             .find(|(s, _, _)| s == start)
             .map(|(_, h, f)| (*h, f.clone()))
     }
+
+    fn has(&self, start: &Rigid) -> bool {
+        self.done.iter().any(|(s, _, _)| s == start)
+    }
 }
 
 /// Two poses compared where they put the source's centroid: the translation `t` itself
@@ -309,7 +313,7 @@ pub(super) fn verify_hypotheses(
     let poses = PoseGap::new(inputs.source, inputs.coarse);
     let todo = pass.candidates(inputs.coarse, v, &poses);
     let mut firsts = first_stages(inputs, ready, cfg, v, &todo, stages)?;
-    let (own, decide) = match pass {
+    let (own, floor) = match pass {
         // The first look decides its own poses (those at the voxel size) first; when none
         // scores the gate it settles nothing, and the decisions on the coarse level's (their
         // checks, second runs, scores) are left to the whole verification, which reuses
@@ -319,15 +323,21 @@ pub(super) fn verify_hypotheses(
                 .iter()
                 .take_while(|(_, level)| *level == HypothesisLevel::Voxel)
                 .count();
-            (own, Decide { floor: gate })
+            (own, gate)
         }
-        VerifyPass::All => (todo.len(), Decide { floor: 0.0 }),
+        VerifyPass::All => (todo.len(), 0.0),
+    };
+    let decide = Decide {
+        ready,
+        v,
+        poses: &poses,
+        floor,
     };
     let others = firsts.split_off(own);
     let mut out = Vec::new();
-    decide.in_order(ready, v, &todo[..own], firsts, &poses, stages, &mut out)?;
-    if out.iter().any(|h| h.evidence.score >= decide.floor) {
-        decide.in_order(ready, v, &todo[own..], others, &poses, stages, &mut out)?;
+    decide.in_order(&todo[..own], firsts, stages, &mut out)?;
+    if out.iter().any(|h| h.evidence.score >= floor) {
+        decide.in_order(&todo[own..], others, stages, &mut out)?;
     }
     if matches!(pass, VerifyPass::All) {
         let finer = || {
@@ -394,15 +404,18 @@ fn first_stages(
         })
         .collect::<Result<_>>()?;
     for ((h, _), (polished, first)) in todo.iter().zip(&firsts) {
-        if stages.get(&h.transform).is_none() {
+        if !stages.has(&h.transform) {
             stages.done.push((h.transform, *polished, first.clone()));
         }
     }
     Ok(firsts)
 }
 
-/// How a pass takes its decisions.
-struct Decide {
+/// How a pass takes its decisions: on what, and against what floor.
+struct Decide<'r> {
+    ready: &'r VerifyReady,
+    v: &'r VerifyConfig,
+    poses: &'r PoseGap,
     /// The least "best so far" a check compares with: the first look only looks for a pose
     /// scoring its gate, so a hypothesis below `reject_ratio` × the gate at its check is
     /// dropped there, as the whole verification drops one below `reject_ratio` × the best so
@@ -410,22 +423,19 @@ struct Decide {
     floor: f64,
 }
 
-impl Decide {
+impl Decide<'_> {
     /// The decisions that depend on the hypotheses before ([`verify::finish`]), in order,
     /// appended to `out` (those decided before). A pass's first is taken from `stages` when an
     /// earlier pass decided the same start first and did not drop it at its check (its decision
     /// is then the one a pass with no floor takes).
-    #[allow(clippy::too_many_arguments)]
     fn in_order(
         &self,
-        ready: &VerifyReady,
-        v: &VerifyConfig,
         todo: &[(Hypothesis, HypothesisLevel)],
         firsts: Vec<(Hypothesis, verify::FirstStage)>,
-        poses: &PoseGap,
         stages: &mut FirstStages,
         out: &mut Vec<VerifiedHypothesis>,
     ) -> Result<()> {
+        let (ready, v, poses) = (self.ready, self.v, self.poses);
         let mut best = out.iter().map(|h| h.evidence.score).fold(0.0f64, f64::max);
         for ((h, level), (polished, first)) in todo.iter().zip(firsts) {
             let rank = out.len();

@@ -497,7 +497,7 @@ fn settle(
         };
         let inputs = VerifyInputs::new(source, target, &first, search);
         let verification = verify_hypotheses(&inputs, ready, cfg, v, pass, &mut stages)?;
-        let judged = look.judge(&verification, look.rotations, v);
+        let judged = look.judge(&verification, first.stats.scored, v);
         if judged.accepted {
             return Ok(Found {
                 coarse: first,
