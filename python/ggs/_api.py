@@ -389,8 +389,9 @@ def register(
       coarse level's best 16 rotations are verified first, and the search stops there when
       one pose scores at least 0.5 and no distinct pose 0.6 of that); polish=True moves
       each hypothesis on a finer rotation grid first.
-    top_k: coarse hypotheses reported (of the whole search: it turns the first look off); distinct_radius: degrees that make two rotations
-      distinct (default 2 × the set's step); max_memory: bytes, or ``"2G"``, ``"512M"``;
+    top_k: coarse hypotheses reported (of the whole search: it turns the first look off);
+      distinct_radius: degrees that make two rotations distinct (default 2 × the set's
+      step); max_memory: bytes, or ``"2G"``, ``"512M"``;
       dedup: drop rotations within this many degrees of an earlier one.
     coarse_factor, coarse_keep, coarse_keep_min: the coarse-to-fine search's coarse voxel
       (default preset 4 × voxel, otherwise 2 ×), kept fraction (0.01, otherwise 0.02) and
