@@ -208,7 +208,8 @@ class Result:
         rejected_early, at_a_glance: rejected on a random part of the points,
         evidence_points: the source and target points the score summed, level, settled,
         same_as: the rank of the earlier hypothesis whose
-        pose it reached and whose score it carries, or None; chosen, runner_up,
+        pose it reached and whose score it carries, or None; screened: verified by the
+        first look's screening, on cells of one voxel; chosen, runner_up,
         coarse_transformation, transformation)."""
         return self._fields["verified"]  # type: ignore[no-any-return]
 

@@ -75,6 +75,7 @@ fn verified_list<'py>(py: Python<'py>, reg: &Registration) -> PyResult<Bound<'py
         d.set_item("level", level)?;
         d.set_item("settled", h.settled)?;
         d.set_item("same_as", h.same_as)?;
+        d.set_item("screened", h.screened)?;
         d.set_item("chosen", k == v.chosen)?;
         d.set_item("runner_up", Some(k) == v.runner_up)?;
         d.set_item(

@@ -446,7 +446,7 @@ fn print_verification(v: &Verification) -> Result<()> {
             ""
         };
         outln!(
-            "  #{} rotation {}{} match {} → {} after polish, score {:.3} (source {:.3}, target {:.3}), {} ICP iterations{}{}{}{}",
+            "  #{} rotation {}{} match {} → {} after polish, score {:.3} (source {:.3}, target {:.3}), {} ICP iterations{}{}{}{}{}",
             h.rank + 1,
             h.rotation_index,
             match h.level {
@@ -459,6 +459,7 @@ fn print_verification(v: &Verification) -> Result<()> {
             h.evidence.fitness_source,
             h.evidence.fitness_target,
             h.iterations,
+            if h.screened { " on the screening cells" } else { "" },
             match (h.rejected_early, h.at_a_glance) {
                 (true, true) => ", rejected at a glance",
                 (true, false) => ", rejected early",

@@ -1,12 +1,14 @@
 //! The first look on the bundled bunny scans (tests/data): a clear pair is settled by it at
-//! the whole search's pose, and a pair it does not settle gets the whole search's answer bit
-//! for bit.
+//! the whole search's pose, its alternatives screened on coarser cells change nothing but
+//! their own ICP, and a pair it does not settle gets the whole search's answer bit for bit.
 
 mod common;
 
 use ggs::io::read_cloud;
 use ggs::metrics::{rre, rte};
-use ggs::pipeline::{register, FirstLook, Registration, RegistrationConfig, VoxelSize};
+use ggs::pipeline::{
+    register, FirstLook, HypothesisLevel, Registration, RegistrationConfig, VoxelSize,
+};
 use ggs::Cloud;
 
 fn bunny() -> (Cloud, Cloud) {
@@ -25,8 +27,18 @@ fn config(first_look: Option<FirstLook>) -> RegistrationConfig {
 }
 
 fn run(first_look: Option<FirstLook>) -> Registration {
+    run_with(first_look, |_| {})
+}
+
+/// [`run`] with the configuration changed by `change`.
+fn run_with(
+    first_look: Option<FirstLook>,
+    change: impl Fn(&mut RegistrationConfig),
+) -> Registration {
     let (source, target) = bunny();
-    register(&source, &target, &config(first_look)).unwrap()
+    let mut cfg = config(first_look);
+    change(&mut cfg);
+    register(&source, &target, &cfg).unwrap()
 }
 
 #[test]
@@ -60,6 +72,42 @@ fn a_clear_pair_is_settled_by_the_first_look_at_the_whole_searchs_pose() {
     );
 }
 
+#[test]
+fn screening_the_alternatives_on_coarser_cells_keeps_the_chosen_pose() {
+    let screened = run(Some(FirstLook::default()));
+    let unscreened = run(Some(FirstLook {
+        screen_cell_voxels: 0.0,
+        ..FirstLook::default()
+    }));
+    let (a, b) = (screened.first_look.unwrap(), unscreened.first_look.unwrap());
+    assert!(a.accepted && b.accepted, "{a:?} {b:?}");
+    assert_eq!((a.score, a.verified), (b.score, b.verified));
+    assert_eq!(screened.transform, unscreened.transform);
+    let (v, w) = (
+        screened.verification.as_ref().unwrap(),
+        unscreened.verification.as_ref().unwrap(),
+    );
+    assert_eq!(v.chosen, w.chosen);
+    for (x, y) in v.hypotheses.iter().zip(&w.hypotheses) {
+        // The coarse level's poses, and only they, are screened; the first look's own are
+        // verified as before, bit for bit.
+        assert_eq!(x.screened, x.level == HypothesisLevel::Coarse, "{x:?}");
+        assert!(!y.screened);
+        assert_eq!(x.rotation_index, y.rotation_index);
+        if !x.screened {
+            assert_eq!(
+                (x.transform, x.evidence.score),
+                (y.transform, y.evidence.score)
+            );
+        } else {
+            // Ruled out: on the chosen pose, or below the reject ratio of its score.
+            let bar = 0.6 * a.score;
+            assert!(x.same_as.is_some() || x.evidence.score < bar, "{x:?}");
+        }
+    }
+    assert!(v.hypotheses.iter().any(|h| h.screened));
+}
+
 /// The whole search's result, field for field where it matters, from a first look with
 /// `accept_score` that does not settle the pair.
 fn declined_equals_whole(accept_score: f64, whole: &Registration) -> Registration {
@@ -67,7 +115,11 @@ fn declined_equals_whole(accept_score: f64, whole: &Registration) -> Registratio
         accept_score,
         ..FirstLook::default()
     };
-    let declined = run(Some(look));
+    declined_with(run(Some(look)), whole)
+}
+
+/// `declined` (a first look that did not settle the pair) against `whole`.
+fn declined_with(declined: Registration, whole: &Registration) -> Registration {
     let report = declined.first_look.unwrap();
     assert!(!report.accepted && report.verified >= 1, "{report:?}");
     assert_eq!(declined.transform, whole.transform);
@@ -84,8 +136,29 @@ fn declined_equals_whole(accept_score: f64, whole: &Registration) -> Registratio
         assert_eq!(x.transform, y.transform);
         assert_eq!(x.evidence.score, y.evidence.score);
         assert_eq!(x.iterations, y.iterations);
+        assert!(!x.screened);
     }
     declined
+}
+
+#[test]
+fn alternatives_screened_then_declined_leave_the_whole_search_bit_for_bit() {
+    // A reject ratio of 0.05 makes any screened pose that scores 5 % of the chosen one's a
+    // rival: the first look screens the coarse level's poses, then declines.
+    let strict = |cfg: &mut RegistrationConfig| {
+        if let Some(v) = cfg.verify.as_mut() {
+            v.reject_ratio = 0.05;
+        }
+    };
+    let whole = run_with(None, strict);
+    let declined = run_with(Some(FirstLook::default()), strict);
+    let report = declined.first_look.unwrap();
+    let own = FirstLook::default().hypotheses;
+    assert!(
+        report.verified > own.min(2),
+        "the alternatives were screened: {report:?}"
+    );
+    declined_with(declined, &whole);
 }
 
 #[test]

@@ -266,6 +266,11 @@ fn verified_table(v: &Verification) -> String {
         } else {
             ""
         };
+        let note = match (h.screened, note) {
+            (true, "") => "screened on coarser cells".to_string(),
+            (true, n) => format!("{n} (screened on coarser cells)"),
+            (false, n) => n.to_string(),
+        };
         let _ =
             write!(
             s,

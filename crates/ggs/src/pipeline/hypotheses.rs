@@ -50,6 +50,9 @@ pub struct VerifiedHypothesis {
     /// Stopped at the check on the pose of this earlier verified hypothesis (its `rank`),
     /// whose evidence it carries (within [`SAME_POSE_DEG`] and [`SAME_POSE_VOXELS`]).
     pub same_as: Option<usize>,
+    /// Verified by the first look's screening: its ICP ran on the coarser cells of
+    /// [`super::FirstLook::screen_cell_voxels`], not on the verification's.
+    pub screened: bool,
 }
 
 /// The level of the coarse search a hypothesis comes from.
@@ -159,6 +162,10 @@ impl<'a> VerifyInputs<'a> {
 pub(super) struct VerifyReady {
     verifier: verify::Verifier,
     thinned: PreparedPair,
+    /// The first look's screening pair: the thinned pair thinned again to the coarser cells
+    /// of this many voxels, built on first use.
+    screen_cell: Option<f64>,
+    screen: std::sync::OnceLock<PreparedPair>,
     icp: RefineConfig,
 }
 
@@ -170,6 +177,7 @@ impl VerifyReady {
         spacing: f64,
         v: &VerifyConfig,
         icp: RefineConfig,
+        screen_cell_voxels: Option<f64>,
     ) -> Result<Self> {
         let (verifier, thinned) = rayon::join(
             || verify::Verifier::new(source, target, voxel, spacing, v),
@@ -183,8 +191,20 @@ impl VerifyReady {
         Ok(VerifyReady {
             verifier,
             thinned: thinned?,
+            screen_cell: screen_cell_voxels.filter(|&c| c > 0.0).map(|c| c * voxel),
+            screen: std::sync::OnceLock::new(),
             icp,
         })
+    }
+
+    /// The first look's screening pair (see [`Self::screen_cell`]), if it screens.
+    fn screen(&self) -> Option<&PreparedPair> {
+        let cell = self.screen_cell?;
+        Some(self.screen.get_or_init(|| {
+            let pair = self.thinned.coarsened(cell);
+            prepare_pair(&pair, &self.icp);
+            pair
+        }))
     }
 }
 
@@ -208,7 +228,8 @@ pub(super) enum VerifyPass {
     /// `count` at the voxel size, then the coarse level's (the best distinct poses over the whole
     /// set at the coarser voxel), and no settling (a contested pair is not accepted anyway).
     /// Where none of those at the voxel size scores `gate` (the first look cannot accept
-    /// any), the coarse level's are not decided.
+    /// any), the coarse level's are not verified; where one does, they are screened on the
+    /// coarser cells of the ready screening pair when there is one.
     FirstLook { count: usize, gate: f64 },
     /// Every candidate ([`candidates`]), contested poses settled.
     All,
@@ -312,12 +333,10 @@ pub(super) fn verify_hypotheses(
 ) -> Result<Verification> {
     let poses = PoseGap::new(inputs.source, inputs.coarse);
     let todo = pass.candidates(inputs.coarse, v, &poses);
-    let mut firsts = first_stages(inputs, ready, cfg, v, &todo, stages)?;
     let (own, floor) = match pass {
         // The first look decides its own poses (those at the voxel size) first; when none
-        // scores the gate it settles nothing, and the decisions on the coarse level's (their
-        // checks, second runs, scores) are left to the whole verification, which reuses
-        // their first stages.
+        // scores the gate it settles nothing, and the coarse level's are left to the whole
+        // verification.
         VerifyPass::FirstLook { gate, .. } => {
             let own = todo
                 .iter()
@@ -333,11 +352,25 @@ pub(super) fn verify_hypotheses(
         poses: &poses,
         floor,
     };
-    let others = firsts.split_off(own);
     let mut out = Vec::new();
-    decide.in_order(&todo[..own], firsts, stages, &mut out)?;
-    if out.iter().any(|h| h.evidence.score >= floor) {
-        decide.in_order(&todo[own..], others, stages, &mut out)?;
+    let on = |pair| (pair, &ready.icp, v);
+    let firsts = first_stages(inputs, cfg, on(&ready.thinned), &todo[..own], Some(stages))?;
+    decide.in_order(&todo[..own], firsts, Some(stages), &ready.thinned, &mut out)?;
+    if own < todo.len() && out.iter().any(|h| h.evidence.score >= floor) {
+        // The first look's alternatives: screened on the coarser cells (neither kept for
+        // nor taken from the whole verification, whose ICP runs on the finer ones), or on
+        // the verification's own.
+        let others = &todo[own..];
+        match ready.screen() {
+            Some(screen) => {
+                let firsts = first_stages(inputs, cfg, on(screen), others, None)?;
+                decide.in_order(others, firsts, None, screen, &mut out)?;
+            }
+            None => {
+                let firsts = first_stages(inputs, cfg, on(&ready.thinned), others, Some(stages))?;
+                decide.in_order(others, firsts, Some(stages), &ready.thinned, &mut out)?;
+            }
+        }
     }
     if matches!(pass, VerifyPass::All) {
         let finer = || {
@@ -375,19 +408,20 @@ pub(super) fn verify_hypotheses(
     })
 }
 
-/// Every hypothesis's polish and first stage depend on its start alone: they run side by
-/// side, or come from an earlier pass (`stages`, which keeps the new ones).
+/// Every hypothesis's polish and first stage on `pair` depend on its start alone: they run
+/// side by side, or come from an earlier pass (`stages`, which keeps the new ones; `None`:
+/// neither taken nor kept, for a pair other than the verification's).
 fn first_stages(
     inputs: &VerifyInputs,
-    ready: &VerifyReady,
     cfg: &RegistrationConfig,
-    v: &VerifyConfig,
+    (pair, icp, v): (&PreparedPair, &RefineConfig, &VerifyConfig),
     todo: &[(Hypothesis, HypothesisLevel)],
-    stages: &mut FirstStages,
+    stages: Option<&mut FirstStages>,
 ) -> Result<Vec<(Hypothesis, verify::FirstStage)>> {
+    let kept = stages.as_deref();
     let firsts: Vec<(Hypothesis, verify::FirstStage)> = todo
         .par_iter()
-        .map(|(h, _)| match stages.get(&h.transform) {
+        .map(|(h, _)| match kept.and_then(|k| k.get(&h.transform)) {
             Some(done) => Ok(done),
             None => {
                 let VerifyInputs {
@@ -397,15 +431,16 @@ fn first_stages(
                     ..
                 } = *inputs;
                 let polished = maybe_polished(source, target, h, search, cfg)?;
-                let first =
-                    verify::first_stage(&ready.thinned, &polished.transform, &ready.icp, v)?;
+                let first = verify::first_stage(pair, &polished.transform, icp, v)?;
                 Ok((polished, first))
             }
         })
         .collect::<Result<_>>()?;
-    for ((h, _), (polished, first)) in todo.iter().zip(&firsts) {
-        if !stages.has(&h.transform) {
-            stages.done.push((h.transform, *polished, first.clone()));
+    if let Some(stages) = stages {
+        for ((h, _), (polished, first)) in todo.iter().zip(&firsts) {
+            if !stages.has(&h.transform) {
+                stages.done.push((h.transform, *polished, first.clone()));
+            }
         }
     }
     Ok(firsts)
@@ -427,12 +462,14 @@ impl Decide<'_> {
     /// The decisions that depend on the hypotheses before ([`verify::finish`]), in order,
     /// appended to `out` (those decided before). A pass's first is taken from `stages` when an
     /// earlier pass decided the same start first and did not drop it at its check (its decision
-    /// is then the one a pass with no floor takes).
+    /// is then the one a pass with no floor takes). The ICP runs on `pair`: the
+    /// verification's, with `stages`, or the first look's screening pair, without.
     fn in_order(
         &self,
         todo: &[(Hypothesis, HypothesisLevel)],
         firsts: Vec<(Hypothesis, verify::FirstStage)>,
-        stages: &mut FirstStages,
+        mut stages: Option<&mut FirstStages>,
+        pair: &PreparedPair,
         out: &mut Vec<VerifiedHypothesis>,
     ) -> Result<()> {
         let (ready, v, poses) = (self.ready, self.v, self.poses);
@@ -446,9 +483,10 @@ impl Decide<'_> {
                     })
                     .map(|o| (o.rank, o.evidence))
             };
-            let (thinned, verifier, icp) = (&ready.thinned, &ready.verifier, &ready.icp);
+            let (verifier, icp) = (&ready.verifier, &ready.icp);
             let leader = stages
-                .leader
+                .as_deref()
+                .and_then(|s| s.leader)
                 .filter(|(start, _)| rank == 0 && *start == h.transform);
             let bar = verify::Bar {
                 best,
@@ -456,10 +494,12 @@ impl Decide<'_> {
             };
             let c = match leader {
                 Some((_, c)) => c,
-                None => verify::finish(first, thinned, verifier, icp, v, bar, &known)?,
+                None => verify::finish(first, pair, verifier, icp, v, bar, &known)?,
             };
-            if rank == 0 && !c.rejected_early {
-                stages.leader = Some((h.transform, c));
+            if let Some(stages) = stages.as_deref_mut().filter(|_| rank == 0) {
+                if !c.rejected_early {
+                    stages.leader = Some((h.transform, c));
+                }
             }
             best = best.max(c.evidence.score);
             out.push(VerifiedHypothesis {
@@ -476,6 +516,7 @@ impl Decide<'_> {
                 at_a_glance: c.at_a_glance,
                 settled: false,
                 same_as: c.same_as,
+                screened: stages.is_none(),
             });
         }
         Ok(())

@@ -403,7 +403,8 @@ fn register_in_pool(
             rayon::join(
                 || {
                     cfg.verify.as_ref().map(|v| {
-                        VerifyReady::new(source, target, voxel, spacing_of_target(), v, icp)
+                        let screen = first_look.map(|l| l.screen_cell_voxels);
+                        VerifyReady::new(source, target, voxel, spacing_of_target(), v, icp, screen)
                     })
                 },
                 || thinned_final_pair(source, target, voxel, refine_cfg.as_ref(), cfg),

@@ -120,6 +120,21 @@ impl PreparedPair {
         ))
     }
 
+    /// This pair's clouds thinned again to one point (the mean of this pair's points) per
+    /// cell of edge `cell`, in the same frame: a coarser pair at the cost of thinning the
+    /// thinned points only.
+    pub fn coarsened(&self, cell: f64) -> Self {
+        let thin = |c: &PreparedCloud| cell_centroids(&c.points[..], cell);
+        let centre = [self.centre.x, self.centre.y, self.centre.z];
+        Self::from_points(
+            centre,
+            thin(&self.source),
+            thin(&self.target),
+            self.neighbors,
+            self.epsilon,
+        )
+    }
+
     /// Both clouds thinned to one point (the mean) per cell of edge `cell`, prepared.
     pub fn thinned(
         source: &Cloud,
