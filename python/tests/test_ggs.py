@@ -421,8 +421,12 @@ def test_first_look_settles_a_clear_pair_and_can_be_turned_off():
     look = first.first_look
     assert look["accepted"] and look["rotations"] == 16 and look["score"] >= 0.5
     assert look["verified"] == len(first.verified)
+    # The coarse level's alternatives, and only they, were screened on coarser cells.
+    assert any(h["screened"] for h in first.verified)
+    assert all(h["screened"] == (h["level"] == "coarse") for h in first.verified)
     whole = ggs.register(source, target, voxel=0.005, first_look=False)
     assert whole.first_look is None and len(whole.verified) > len(first.verified)
+    assert not any(h["screened"] for h in whole.verified)
     assert ggs.metrics.rre(first.transformation, whole.transformation) < 0.01
     paper = ggs.register(source, target, voxel=0.005, preset="paper")
     assert paper.first_look is None
