@@ -197,6 +197,14 @@ impl VerifyReady {
         })
     }
 
+    /// What [`first_stages`] runs on the verification's thinned pair with `v`.
+    fn on_thinned<'s>(
+        &'s self,
+        v: &'s VerifyConfig,
+    ) -> (&'s PreparedPair, &'s RefineConfig, &'s VerifyConfig) {
+        (&self.thinned, &self.icp, v)
+    }
+
     /// The first look's screening pair (see [`Self::screen_cell`]), if it screens.
     fn screen(&self) -> Option<&PreparedPair> {
         let cell = self.screen_cell?;
@@ -353,24 +361,11 @@ pub(super) fn verify_hypotheses(
         floor,
     };
     let mut out = Vec::new();
-    let on = |pair| (pair, &ready.icp, v);
-    let firsts = first_stages(inputs, cfg, on(&ready.thinned), &todo[..own], Some(stages))?;
+    let firsts = first_stages(inputs, cfg, ready.on_thinned(v), &todo[..own], Some(stages))?;
     decide.in_order(&todo[..own], firsts, Some(stages), &ready.thinned, &mut out)?;
     if own < todo.len() && out.iter().any(|h| h.evidence.score >= floor) {
-        // The first look's alternatives: screened on the coarser cells (neither kept for
-        // nor taken from the whole verification, whose ICP runs on the finer ones), or on
-        // the verification's own.
         let others = &todo[own..];
-        match ready.screen() {
-            Some(screen) => {
-                let firsts = first_stages(inputs, cfg, on(screen), others, None)?;
-                decide.in_order(others, firsts, None, screen, &mut out)?;
-            }
-            None => {
-                let firsts = first_stages(inputs, cfg, on(&ready.thinned), others, Some(stages))?;
-                decide.in_order(others, firsts, Some(stages), &ready.thinned, &mut out)?;
-            }
-        }
+        decide.alternatives(inputs, cfg, others, stages, &mut out)?;
     }
     if matches!(pass, VerifyPass::All) {
         let finer = || {
@@ -459,6 +454,31 @@ struct Decide<'r> {
 }
 
 impl Decide<'_> {
+    /// The first look's alternatives (the coarse level's poses), after its own: screened on
+    /// the coarser cells (neither kept for nor taken from the whole verification, whose ICP
+    /// runs on the finer ones), or on the verification's own cells where there is no
+    /// screening pair.
+    fn alternatives(
+        &self,
+        inputs: &VerifyInputs,
+        cfg: &RegistrationConfig,
+        others: &[(Hypothesis, HypothesisLevel)],
+        stages: &mut FirstStages,
+        out: &mut Vec<VerifiedHypothesis>,
+    ) -> Result<()> {
+        let (ready, v) = (self.ready, self.v);
+        match ready.screen() {
+            Some(screen) => {
+                let firsts = first_stages(inputs, cfg, (screen, &ready.icp, v), others, None)?;
+                self.in_order(others, firsts, None, screen, out)
+            }
+            None => {
+                let firsts = first_stages(inputs, cfg, ready.on_thinned(v), others, Some(stages))?;
+                self.in_order(others, firsts, Some(stages), &ready.thinned, out)
+            }
+        }
+    }
+
     /// The decisions that depend on the hypotheses before ([`verify::finish`]), in order,
     /// appended to `out` (those decided before). A pass's first is taken from `stages` when an
     /// earlier pass decided the same start first and did not drop it at its check (its decision

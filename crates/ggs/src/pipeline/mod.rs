@@ -392,22 +392,18 @@ fn register_in_pool(
     // What the verification and the final refinement start from depends on the clouds and
     // the voxel only: it is built while the search runs, on the threads the search leaves
     // idle (the same results: every piece is a pure function of its inputs).
-    let icp = refine_cfg.unwrap_or(RefineConfig {
-        threads: cfg.threads,
-        ..RefineConfig::default()
-    });
     let prepared = std::sync::OnceLock::new();
+    let clouds = (source, target);
     let (started, (ready, prepared_final)) = rayon::join(
         || start_search(&prepared, source, target, cfg, &search, first_look.as_ref()),
         || {
-            rayon::join(
-                || {
-                    cfg.verify.as_ref().map(|v| {
-                        let screen = first_look.map(|l| l.screen_cell_voxels);
-                        VerifyReady::new(source, target, voxel, spacing_of_target(), v, icp, screen)
-                    })
-                },
-                || thinned_final_pair(source, target, voxel, refine_cfg.as_ref(), cfg),
+            beside_search(
+                clouds,
+                voxel,
+                &spacing_of_target,
+                cfg,
+                refine_cfg,
+                first_look,
             )
         },
     );
@@ -416,7 +412,6 @@ fn register_in_pool(
     // The first look's search ends here; completing it (below) counts as search too.
     let t_verify = Instant::now();
     let ready = ready.transpose()?;
-    let clouds = (source, target);
     let found = settle(
         clouds,
         running,
@@ -533,6 +528,39 @@ fn settle(
         report,
         rest_ms,
     })
+}
+
+/// What the verification (with the first look's screening cells) and a thinned final
+/// refinement start from, side by side (none where `cfg` has no verification or no thinned
+/// refinement); `spacing` gives the target's point spacing.
+fn beside_search(
+    (source, target): (&Cloud, &Cloud),
+    voxel: f64,
+    spacing: &(dyn Fn() -> f64 + Sync),
+    cfg: &RegistrationConfig,
+    refine_cfg: Option<RefineConfig>,
+    look: Option<FirstLook>,
+) -> (Option<Result<VerifyReady>>, Option<Result<PreparedPair>>) {
+    let icp = refine_cfg.unwrap_or(RefineConfig {
+        threads: cfg.threads,
+        ..RefineConfig::default()
+    });
+    let screen = look.map(|l| l.screen_cell_voxels);
+    rayon::join(
+        || {
+            let v = cfg.verify.as_ref()?;
+            Some(VerifyReady::new(
+                source,
+                target,
+                voxel,
+                spacing(),
+                v,
+                icp,
+                screen,
+            ))
+        },
+        || thinned_final_pair(source, target, voxel, refine_cfg.as_ref(), cfg),
+    )
 }
 
 /// The first look of `cfg`, where it applies: a coarse-to-fine search whose hypotheses are
