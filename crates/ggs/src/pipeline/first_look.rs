@@ -43,7 +43,7 @@
 //! project (docs/performance.md, "Screening the alternatives"): the first look settled the
 //! same pairs as with the alternatives verified on the verification's own cells, with the
 //! same transform but for 10 pairs whose chosen pose was itself an alternative (within
-//! 0.0006°), at 9 % fewer instructions on the bunny pair. The screening's ICP runs are not
+//! 0.0006°), at 11 % fewer instructions on the bunny pair. The screening's ICP runs are not
 //! reused by the whole verification (its cells differ), so a pair the first look declines
 //! after screening pays for the screening: a quarter of what the alternatives cost before.
 //!

@@ -197,14 +197,6 @@ impl VerifyReady {
         })
     }
 
-    /// What [`first_stages`] runs on the verification's thinned pair with `v`.
-    fn on_thinned<'s>(
-        &'s self,
-        v: &'s VerifyConfig,
-    ) -> (&'s PreparedPair, &'s RefineConfig, &'s VerifyConfig) {
-        (&self.thinned, &self.icp, v)
-    }
-
     /// The first look's screening pair (see [`Self::screen_cell`]), if it screens.
     fn screen(&self) -> Option<&PreparedPair> {
         let cell = self.screen_cell?;
@@ -361,7 +353,7 @@ pub(super) fn verify_hypotheses(
         floor,
     };
     let mut out = Vec::new();
-    let firsts = first_stages(inputs, cfg, ready.on_thinned(v), &todo[..own], Some(stages))?;
+    let firsts = decide.first_stages(inputs, cfg, &ready.thinned, &todo[..own], Some(stages))?;
     decide.in_order(&todo[..own], firsts, Some(stages), &ready.thinned, &mut out)?;
     if own < todo.len() && out.iter().any(|h| h.evidence.score >= floor) {
         let others = &todo[own..];
@@ -403,44 +395,6 @@ pub(super) fn verify_hypotheses(
     })
 }
 
-/// Every hypothesis's polish and first stage on `pair` depend on its start alone: they run
-/// side by side, or come from an earlier pass (`stages`, which keeps the new ones; `None`:
-/// neither taken nor kept, for a pair other than the verification's).
-fn first_stages(
-    inputs: &VerifyInputs,
-    cfg: &RegistrationConfig,
-    (pair, icp, v): (&PreparedPair, &RefineConfig, &VerifyConfig),
-    todo: &[(Hypothesis, HypothesisLevel)],
-    stages: Option<&mut FirstStages>,
-) -> Result<Vec<(Hypothesis, verify::FirstStage)>> {
-    let kept = stages.as_deref();
-    let firsts: Vec<(Hypothesis, verify::FirstStage)> = todo
-        .par_iter()
-        .map(|(h, _)| match kept.and_then(|k| k.get(&h.transform)) {
-            Some(done) => Ok(done),
-            None => {
-                let VerifyInputs {
-                    source,
-                    target,
-                    search,
-                    ..
-                } = *inputs;
-                let polished = maybe_polished(source, target, h, search, cfg)?;
-                let first = verify::first_stage(pair, &polished.transform, icp, v)?;
-                Ok((polished, first))
-            }
-        })
-        .collect::<Result<_>>()?;
-    if let Some(stages) = stages {
-        for ((h, _), (polished, first)) in todo.iter().zip(&firsts) {
-            if !stages.has(&h.transform) {
-                stages.done.push((h.transform, *polished, first.clone()));
-            }
-        }
-    }
-    Ok(firsts)
-}
-
 /// How a pass takes its decisions: on what, and against what floor.
 struct Decide<'r> {
     ready: &'r VerifyReady,
@@ -454,6 +408,46 @@ struct Decide<'r> {
 }
 
 impl Decide<'_> {
+    /// Every hypothesis's polish and first stage on `pair` depend on its start alone: they run
+    /// side by side, or come from an earlier pass (`stages`, which keeps the new ones; `None`:
+    /// neither taken nor kept, for a pair other than the verification's).
+    fn first_stages(
+        &self,
+        inputs: &VerifyInputs,
+        cfg: &RegistrationConfig,
+        pair: &PreparedPair,
+        todo: &[(Hypothesis, HypothesisLevel)],
+        stages: Option<&mut FirstStages>,
+    ) -> Result<Vec<(Hypothesis, verify::FirstStage)>> {
+        let (icp, v) = (&self.ready.icp, self.v);
+        let kept = stages.as_deref();
+        let firsts: Vec<(Hypothesis, verify::FirstStage)> = todo
+            .par_iter()
+            .map(|(h, _)| match kept.and_then(|k| k.get(&h.transform)) {
+                Some(done) => Ok(done),
+                None => {
+                    let VerifyInputs {
+                        source,
+                        target,
+                        search,
+                        ..
+                    } = *inputs;
+                    let polished = maybe_polished(source, target, h, search, cfg)?;
+                    let first = verify::first_stage(pair, &polished.transform, icp, v)?;
+                    Ok((polished, first))
+                }
+            })
+            .collect::<Result<_>>()?;
+        if let Some(stages) = stages {
+            for ((h, _), (polished, first)) in todo.iter().zip(&firsts) {
+                if !stages.has(&h.transform) {
+                    stages.done.push((h.transform, *polished, first.clone()));
+                }
+            }
+        }
+        Ok(firsts)
+    }
+
     /// The first look's alternatives (the coarse level's poses), after its own: screened on
     /// the coarser cells (neither kept for nor taken from the whole verification, whose ICP
     /// runs on the finer ones), or on the verification's own cells where there is no
@@ -466,14 +460,15 @@ impl Decide<'_> {
         stages: &mut FirstStages,
         out: &mut Vec<VerifiedHypothesis>,
     ) -> Result<()> {
-        let (ready, v) = (self.ready, self.v);
+        let ready = self.ready;
         match ready.screen() {
             Some(screen) => {
-                let firsts = first_stages(inputs, cfg, (screen, &ready.icp, v), others, None)?;
+                let firsts = self.first_stages(inputs, cfg, screen, others, None)?;
                 self.in_order(others, firsts, None, screen, out)
             }
             None => {
-                let firsts = first_stages(inputs, cfg, ready.on_thinned(v), others, Some(stages))?;
+                let firsts =
+                    self.first_stages(inputs, cfg, &ready.thinned, others, Some(stages))?;
                 self.in_order(others, firsts, Some(stages), &ready.thinned, out)
             }
         }
