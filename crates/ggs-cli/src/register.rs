@@ -437,6 +437,18 @@ fn print_verification(v: &Verification) -> Result<()> {
         v.hypotheses.len(),
         v.distance
     );
+    let scans = match v.scanners {
+        [true, true] => Some("source and target"),
+        [true, false] => Some("source"),
+        [false, true] => Some("target"),
+        [false, false] => None,
+    };
+    if let Some(which) = scans {
+        outln!(
+            "  free space: {which} taken as scans from their origins; a point more than {:.3} in front of what the other scan saw counts against a pose",
+            v.free_space_margin
+        );
+    }
     for (k, h) in v.hypotheses.iter().enumerate() {
         let mark = if k == v.chosen {
             " ← chosen"
@@ -446,7 +458,7 @@ fn print_verification(v: &Verification) -> Result<()> {
             ""
         };
         outln!(
-            "  #{} rotation {}{} match {} → {} after polish, score {:.3} (source {:.3}, target {:.3}), {} ICP iterations{}{}{}{}{}",
+            "  #{} rotation {}{} match {} → {} after polish, score {:.3} (source {:.3}, target {:.3}), {} ICP iterations{}{}{}{}{}{}",
             h.rank + 1,
             h.rotation_index,
             match h.level {
@@ -460,6 +472,10 @@ fn print_verification(v: &Verification) -> Result<()> {
             h.evidence.fitness_target,
             h.iterations,
             if h.screened { " on the screening cells" } else { "" },
+            h.evidence
+                .free_space_violations
+                .map(|s| format!(", {:.1} % in seen free space", 100.0 * s))
+                .unwrap_or_default(),
             match (h.rejected_early, h.at_a_glance) {
                 (true, true) => ", rejected at a glance",
                 (true, false) => ", rejected early",

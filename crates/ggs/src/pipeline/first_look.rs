@@ -142,6 +142,7 @@ mod tests {
                     fitness_target: score,
                     score,
                     points: [100, 100],
+                    free_space_violations: None,
                 },
                 iterations: 10,
                 rejected_early: false,
@@ -159,6 +160,8 @@ mod tests {
             distance: 0.1,
             cell: 0.5,
             score: VerifyScore::Tight,
+            scanners: [false, false],
+            free_space_margin: 0.5,
         }
     }
 

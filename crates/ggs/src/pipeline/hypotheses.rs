@@ -80,6 +80,11 @@ pub struct Verification {
     pub cell: f64,
     /// How a point within `D` counted.
     pub score: VerifyScore,
+    /// Whether the source and the target were taken as scans from their origins, whose seen
+    /// free space the score checks ([`super::free_space`]).
+    pub scanners: [bool; 2],
+    /// The free-space margin `m`, cloud units (used only where `scanners` says so).
+    pub free_space_margin: f64,
 }
 
 /// `h` polished when the config asks for it, else `h` itself.
@@ -392,6 +397,8 @@ pub(super) fn verify_hypotheses(
         distance: ready.verifier.distance,
         cell: v.cell_voxels * inputs.coarse.stats.voxel,
         score: v.score,
+        scanners: ready.verifier.scanners(),
+        free_space_margin: ready.verifier.free_space_margin(),
     })
 }
 

@@ -18,6 +18,14 @@
 //! turned away from their cloud's centroid): not the default, since that rule orients
 //! non-convex views badly (docs/pipeline.md, "Where the remaining failures come from").
 //!
+//! Where a cloud is a scan from its origin ([`super::free_space::origin_is_scanner`]), the
+//! other cloud's points must not lie in the space it saw through: with `v` the share of the
+//! summed points that do (the mean over the sides checked; [`super::free_space::RangeImage`],
+//! margin `m` = `free_space_margin_voxels · s`),
+//! `score = max(0, (f_s + f_t)/2 − λ · max(0, v − v₀))` (`λ` = `free_space_weight`, `v₀` =
+//! `free_space_tolerance`). On scenes a turn that lays ground on ground overlaps as well as
+//! the right pose and is told apart only by this (docs/pipeline.md, "Free space").
+//!
 //! The sums run over the source points `S` and the target points (each an evenly strided
 //! sample of at most [`SAMPLE_POINTS`] points of the full cloud); the nearest neighbours `q`
 //! are searched among every point of the other cloud (up to [`INDEX_POINTS`]).
@@ -39,6 +47,7 @@
 //! ([`first_stage`]), so the pipeline runs it for every hypothesis side by side and takes the
 //! decisions ([`finish`]) in rank order, with the same outcome.
 
+use super::free_space::{origin_is_scanner, RangeImage};
 use crate::cloud::{Cloud, Point};
 use crate::error::Result;
 use crate::refine::grid::RadiusSearch;
@@ -100,6 +109,15 @@ pub struct VerifyConfig {
     pub ambiguous_ratio: f64,
     /// How a point within `D` counts.
     pub score: VerifyScore,
+    /// `λ`: the score loses `λ · max(0, v − v₀)` for a share `v` of points lying in the free
+    /// space seen by the other cloud (a scan from its origin, [`super::free_space`]).
+    pub free_space_weight: f64,
+    /// `v₀`: the share of points that may lie in the other scan's free space at the right
+    /// pose (moving objects, glass, vegetation, range noise) before the score loses any.
+    pub free_space_tolerance: f64,
+    /// The free-space margin `m` in voxels: a point violates the free space when it lies at
+    /// least this far in front of the nearest surface seen in its direction.
+    pub free_space_margin_voxels: f64,
 }
 
 /// How a point within `D` of the other cloud counts in the verification score.
@@ -153,6 +171,9 @@ impl Default for VerifyConfig {
             fine_iterations: 50,
             ambiguous_ratio: 0.9,
             score: VerifyScore::Tight,
+            free_space_weight: 10.0,
+            free_space_tolerance: 0.02,
+            free_space_margin_voxels: 1.0,
         }
     }
 }
@@ -169,6 +190,11 @@ pub struct Evidence {
     /// How many source and target points the sums ran over: the samples, or the part of them
     /// drawn for the glance for a hypothesis rejected at a glance ([`finish`]).
     pub points: [usize; 2],
+    /// Share of the summed points that lie in the other scan's free space
+    /// ([`super::free_space`]): the mean over the sides whose other cloud is a scan from its
+    /// origin; `None` when neither is.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub free_space_violations: Option<f64>,
 }
 
 /// Scores poses of one pair at one distance `D`; built once per pair.
@@ -186,6 +212,15 @@ pub struct Verifier {
     /// The positions in each sample the glance sums ([`Self::glance`]); `None` when the
     /// samples are too small for one.
     glance: Option<[Vec<u32>; 2]>,
+    /// The free space seen by the target (tests the moved source points) and by the source
+    /// (tests the target points moved back), where that cloud is a scan from its origin.
+    free_space: [Option<RangeImage>; 2],
+    /// The free-space margin `m`, cloud units.
+    free_space_margin: f64,
+    /// `λ` of [`VerifyConfig::free_space_weight`].
+    free_space_weight: f64,
+    /// `v₀` of [`VerifyConfig::free_space_tolerance`].
+    free_space_tolerance: f64,
 }
 
 /// `m` of the positions `0..n`, drawn uniformly without replacement by `rng` (a partial
@@ -269,7 +304,18 @@ impl Verifier {
                 draw(n, n.div_ceil(k), &mut rng)
             })
         });
+        let scan = |sample: &[Point], index: &[Point]| {
+            origin_is_scanner(sample).then(|| RangeImage::new(index, diagonal(index)))
+        };
+        let free_space = [
+            scan(&target_sample, &target_index),
+            scan(&source_sample, &source_index),
+        ];
         Verifier {
+            free_space,
+            free_space_margin: cfg.free_space_margin_voxels * voxel,
+            free_space_weight: cfg.free_space_weight,
+            free_space_tolerance: cfg.free_space_tolerance,
             in_source: RadiusSearch::new(&source_index, distance, None),
             in_target: RadiusSearch::new(&target_index, distance, None),
             glance,
@@ -303,6 +349,17 @@ impl Verifier {
         }
     }
 
+    /// Whether the source and the target are taken as scans from their origins, whose free
+    /// space the score checks ([`super::free_space::origin_is_scanner`]).
+    pub fn scanners(&self) -> [bool; 2] {
+        [self.free_space[1].is_some(), self.free_space[0].is_some()]
+    }
+
+    /// The free-space margin `m`, cloud units.
+    pub fn free_space_margin(&self) -> f64 {
+        self.free_space_margin
+    }
+
     /// The evidence for `T` (`p_target = T · p_source`).
     pub fn evidence(&self, t: &Rigid) -> Evidence {
         self.evidence_over(t, None)
@@ -333,28 +390,63 @@ impl Verifier {
             Self::facing(r, a, b).then_some(hit).flatten()
         };
         let summed = |points: &[Point], which: usize| at.map_or(points.len(), |a| a[which].len());
-        // Σ w over the summed points of one side's sample, moved by `m` into the other cloud.
-        let side = |points: &[Point], m: &Rigid, other: &RadiusSearch, which: usize| -> u64 {
+        // Σ w and the count of free-space violations over the summed points of one side's
+        // sample, moved by `m` into the other cloud.
+        let side = |points: &[Point], m: &Rigid, other: &RadiusSearch, which: usize| {
+            let seen = self.free_space[which].as_ref();
             (0..summed(points, which))
                 .into_par_iter()
                 .map(|s| {
                     let i = at.map_or(s, |a| a[which][s] as usize);
-                    self.weight(facing(i, other.nearest(&m.apply(&points[i])), which))
+                    let q = m.apply(&points[i]);
+                    let w = self.weight(facing(i, other.nearest(&q), which));
+                    let v = seen.is_some_and(|image| image.violates(&q, self.free_space_margin));
+                    (w, v as u64)
                 })
-                .sum()
+                .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1))
         };
-        let matched_source = side(&self.source, t, &self.in_target, 0);
-        let matched_target = side(&self.target, &inv, &self.in_source, 1);
+        let (matched_source, violating_source) = side(&self.source, t, &self.in_target, 0);
+        let (matched_target, violating_target) = side(&self.target, &inv, &self.in_source, 1);
         let points = [summed(&self.source, 0), summed(&self.target, 1)];
         let fs = matched_source as f64 / WEIGHT_ONE as f64 / points[0] as f64;
         let ft = matched_target as f64 / WEIGHT_ONE as f64 / points[1] as f64;
+        let shares = [
+            violating_source as f64 / points[0] as f64,
+            violating_target as f64 / points[1] as f64,
+        ];
+        let sides: Vec<f64> = (0..2)
+            .filter(|&k| self.free_space[k].is_some())
+            .map(|k| shares[k])
+            .collect();
+        let free_space_violations =
+            (!sides.is_empty()).then(|| sides.iter().sum::<f64>() / sides.len() as f64);
+        let excess =
+            free_space_violations.map_or(0.0, |v| (v - self.free_space_tolerance).max(0.0));
+        let penalty = self.free_space_weight * excess;
         Evidence {
             fitness_source: fs,
             fitness_target: ft,
-            score: 0.5 * (fs + ft),
+            score: (0.5 * (fs + ft) - penalty).max(0.0),
             points,
+            free_space_violations,
         }
     }
+}
+
+/// The bounding box diagonal of `points`.
+fn diagonal(points: &[Point]) -> f64 {
+    let mut min = [f64::INFINITY; 3];
+    let mut max = [f64::NEG_INFINITY; 3];
+    for p in points {
+        for d in 0..3 {
+            min[d] = min[d].min(p[d]);
+            max[d] = max[d].max(p[d]);
+        }
+    }
+    (0..3)
+        .map(|d| (max[d] - min[d]).powi(2))
+        .sum::<f64>()
+        .sqrt()
 }
 
 impl Evidence {
@@ -546,6 +638,74 @@ mod tests {
         )
     }
 
+    /// A panoramic scan from the origin of a 40 × 16 m walled yard, the ground 2 m below the
+    /// scanner: rays every 0.5° of azimuth and 1° of elevation from −60° to 10°, as a
+    /// spinning LiDAR samples, each ending on the first surface it meets.
+    fn yard() -> Cloud {
+        let mut pts = Vec::new();
+        for i in 0..720 {
+            let a = (i as f64 * 0.5).to_radians();
+            for k in 0..=70 {
+                let e = (-60.0 + k as f64).to_radians();
+                let d = [e.cos() * a.cos(), e.cos() * a.sin(), e.sin()];
+                let along = |half: f64, c: f64| {
+                    if c.abs() > 1e-12 {
+                        half / c.abs()
+                    } else {
+                        f64::INFINITY
+                    }
+                };
+                let ground = if d[2] < 0.0 {
+                    -2.0 / d[2]
+                } else {
+                    f64::INFINITY
+                };
+                let t = along(20.0, d[0]).min(along(8.0, d[1])).min(ground);
+                pts.push([t * d[0], t * d[1], t * d[2]]);
+            }
+        }
+        Cloud::new(pts)
+    }
+
+    #[test]
+    fn a_turn_that_puts_walls_in_the_seen_yard_loses_its_score() {
+        let scan = yard();
+        let turn = Rigid::new(
+            *nalgebra::Rotation3::from_axis_angle(&Vector3::z_axis(), 90f64.to_radians()).matrix(),
+            Vector3::zeros(),
+        );
+        let blind = VerifyConfig {
+            free_space_weight: 0.0,
+            ..VerifyConfig::default()
+        };
+        let (with, without) = (
+            Verifier::new(&scan, &scan, 0.5, 0.5, &VerifyConfig::default()),
+            Verifier::new(&scan, &scan, 0.5, 0.5, &blind),
+        );
+        assert_eq!(with.scanners(), [true, true]);
+        let right = with.evidence(&Rigid::identity());
+        assert_eq!(right.free_space_violations, Some(0.0));
+        assert_eq!(right.score, 1.0);
+        // Laid ground on ground, the turn overlaps well; its short walls stand 8 m from the
+        // scanner, inside the 20 m the scan saw along x.
+        let overlap_only = without.evidence(&turn);
+        assert!(overlap_only.score > 0.5, "{overlap_only:?}");
+        let wrong = with.evidence(&turn);
+        let v = wrong.free_space_violations.unwrap();
+        assert!(v > 0.1, "{wrong:?}");
+        let expected = overlap_only.score - 10.0 * (v - 0.02);
+        assert!((wrong.score - expected.max(0.0)).abs() < 1e-12, "{wrong:?}");
+        assert!(wrong.score < 0.5 * right.score, "{wrong:?}");
+    }
+
+    #[test]
+    fn clouds_that_are_no_scans_from_their_origin_score_as_before() {
+        let c = plane(50);
+        let v = Verifier::new(&c, &c, 0.05, 0.01, &VerifyConfig::default());
+        assert_eq!(v.scanners(), [false, false]);
+        assert_eq!(v.evidence(&Rigid::identity()).free_space_violations, None);
+    }
+
     #[test]
     fn the_right_pose_scores_one_and_a_shift_beyond_d_scores_less() {
         let c = plane(50);
@@ -663,6 +823,7 @@ mod tests {
             fitness_target: 0.75,
             score: 0.5,
             points: [100, 100],
+            free_space_violations: None,
         };
         let start = Rigid::identity();
         let c = check(&pair, &verifier, &start, &icp, &cfg, 0.0, &|_| {
@@ -778,6 +939,7 @@ mod tests {
             fitness_target: ft,
             score: 0.5 * (fs + ft),
             points: [n, n],
+            free_space_violations: None,
         };
         // ½·√(2 · 0.25 / 100) = 0.0354.
         assert!((e(0.5, 0.5, 100).standard_error() - 0.5 * (0.005f64).sqrt()).abs() < 1e-12);
