@@ -55,12 +55,8 @@ fn direction_bin(p: &Point) -> (f64, usize, usize) {
     (r, a, e)
 }
 
-/// Whether `points` (in their file's frame) look like a panoramic scan taken from the origin
-/// (see the module documentation).
-pub fn origin_is_scanner(points: &[Point]) -> bool {
-    if points.len() < 100 {
-        return false;
-    }
+/// The smallest and the largest coordinate of `points` per axis.
+fn bounds(points: &[Point]) -> (Point, Point) {
     let mut min = [f64::INFINITY; 3];
     let mut max = [f64::NEG_INFINITY; 3];
     for p in points {
@@ -69,13 +65,28 @@ pub fn origin_is_scanner(points: &[Point]) -> bool {
             max[d] = max[d].max(p[d]);
         }
     }
+    (min, max)
+}
+
+/// The length of the diagonal of the box from `min` to `max`.
+fn diagonal(min: Point, max: Point) -> f64 {
+    (0..3)
+        .map(|d| (max[d] - min[d]).powi(2))
+        .sum::<f64>()
+        .sqrt()
+}
+
+/// Whether `points` (in their file's frame) look like a panoramic scan taken from the origin
+/// (see the module documentation).
+pub fn origin_is_scanner(points: &[Point]) -> bool {
+    if points.len() < 100 {
+        return false;
+    }
+    let (min, max) = bounds(points);
     if (0..3).any(|d| !(min[d] < 0.0 && max[d] > 0.0)) {
         return false;
     }
-    let diagonal = (0..3)
-        .map(|d| (max[d] - min[d]).powi(2))
-        .sum::<f64>()
-        .sqrt();
+    let diagonal = diagonal(min, max);
     let sectors = (360.0 / SECTOR_DEG) as usize;
     let mut covered = vec![false; sectors];
     let mut ranges: Vec<f64> = Vec::with_capacity(points.len());
@@ -100,10 +111,10 @@ pub struct RangeImage {
 }
 
 impl RangeImage {
-    /// The range image of `points`, a scan taken from the origin, with `diagonal` its bounding
-    /// box's diagonal.
-    pub fn new(points: &[Point], diagonal: f64) -> Self {
-        let near = NEAR_SHARE * diagonal;
+    /// The range image of `points`, a scan taken from the origin.
+    pub fn new(points: &[Point]) -> Self {
+        let (min, max) = bounds(points);
+        let near = NEAR_SHARE * diagonal(min, max);
         let mut nearest = vec![f64::INFINITY; AZIMUTH_BINS * ELEVATION_BINS];
         for p in points {
             let (r, a, e) = direction_bin(p);
@@ -136,31 +147,42 @@ impl RangeImage {
     }
 }
 
+/// A simulated panoramic scan from the origin, for tests: rays every 0.5° of azimuth and 1°
+/// of elevation from −60° to `top_deg`, as a spinning LiDAR samples, each ending at the range
+/// `first_hit` gives for its unit direction (the first surface it meets).
+#[cfg(test)]
+pub(crate) fn simulated_scan(top_deg: i32, first_hit: impl Fn(&Point) -> f64) -> Vec<Point> {
+    let mut pts = Vec::new();
+    for i in 0..720 {
+        let a = (i as f64 * 0.5).to_radians();
+        for e in -60..=top_deg {
+            let e = (e as f64).to_radians();
+            let d = [e.cos() * a.cos(), e.cos() * a.sin(), e.sin()];
+            let t = first_hit(&d);
+            pts.push([t * d[0], t * d[1], t * d[2]]);
+        }
+    }
+    pts
+}
+
+/// The range along unit direction `d` to the ground `depth` below the origin (infinite for
+/// a ray that does not go down).
+#[cfg(test)]
+pub(crate) fn to_ground(d: &Point, depth: f64) -> f64 {
+    if d[2] < 0.0 {
+        -depth / d[2]
+    } else {
+        f64::INFINITY
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    /// A panoramic scan of a ground plane 2 m below the scanner and a ring of walls 10 m
-    /// away: rays every 0.5° of azimuth and 1° of elevation from −60° to 5°, as a
-    /// spinning LiDAR samples, each ending on the first surface it meets.
+    /// A panoramic scan of a ground plane 2 m below the scanner and a ring of walls 10 m away.
     fn room() -> Vec<Point> {
-        let mut pts = Vec::new();
-        for i in 0..720 {
-            let a = (i as f64 * 0.5).to_radians();
-            for k in 0..=65 {
-                let e = (-60.0 + k as f64).to_radians();
-                let d = [e.cos() * a.cos(), e.cos() * a.sin(), e.sin()];
-                let to_wall = 10.0 / e.cos();
-                let to_ground = if d[2] < 0.0 {
-                    -2.0 / d[2]
-                } else {
-                    f64::INFINITY
-                };
-                let t = to_wall.min(to_ground);
-                pts.push([t * d[0], t * d[1], t * d[2]]);
-            }
-        }
-        pts
+        simulated_scan(5, |d| (10.0 / d[0].hypot(d[1])).min(to_ground(d, 2.0)))
     }
 
     #[test]
@@ -187,7 +209,7 @@ mod tests {
     #[test]
     fn points_inside_the_seen_space_violate_and_points_on_or_behind_it_do_not() {
         let scan = room();
-        let image = RangeImage::new(&scan, 20.0);
+        let image = RangeImage::new(&scan);
         assert!(image.violates(&[5.0, 0.0, 0.0], 0.5));
         assert!(!image.violates(&[9.8, 0.0, 0.0], 0.5));
         assert!(!image.violates(&[12.0, 0.0, 0.0], 0.5));

@@ -305,7 +305,7 @@ impl Verifier {
             })
         });
         let scan = |sample: &[Point], index: &[Point]| {
-            origin_is_scanner(sample).then(|| RangeImage::new(index, diagonal(index)))
+            origin_is_scanner(sample).then(|| RangeImage::new(index))
         };
         let free_space = [
             scan(&target_sample, &target_index),
@@ -431,22 +431,6 @@ impl Verifier {
             free_space_violations,
         }
     }
-}
-
-/// The bounding box diagonal of `points`.
-fn diagonal(points: &[Point]) -> f64 {
-    let mut min = [f64::INFINITY; 3];
-    let mut max = [f64::NEG_INFINITY; 3];
-    for p in points {
-        for d in 0..3 {
-            min[d] = min[d].min(p[d]);
-            max[d] = max[d].max(p[d]);
-        }
-    }
-    (0..3)
-        .map(|d| (max[d] - min[d]).powi(2))
-        .sum::<f64>()
-        .sqrt()
 }
 
 impl Evidence {
@@ -639,32 +623,13 @@ mod tests {
     }
 
     /// A panoramic scan from the origin of a 40 × 16 m walled yard, the ground 2 m below the
-    /// scanner: rays every 0.5° of azimuth and 1° of elevation from −60° to 10°, as a
-    /// spinning LiDAR samples, each ending on the first surface it meets.
+    /// scanner.
     fn yard() -> Cloud {
-        let mut pts = Vec::new();
-        for i in 0..720 {
-            let a = (i as f64 * 0.5).to_radians();
-            for k in 0..=70 {
-                let e = (-60.0 + k as f64).to_radians();
-                let d = [e.cos() * a.cos(), e.cos() * a.sin(), e.sin()];
-                let along = |half: f64, c: f64| {
-                    if c.abs() > 1e-12 {
-                        half / c.abs()
-                    } else {
-                        f64::INFINITY
-                    }
-                };
-                let ground = if d[2] < 0.0 {
-                    -2.0 / d[2]
-                } else {
-                    f64::INFINITY
-                };
-                let t = along(20.0, d[0]).min(along(8.0, d[1])).min(ground);
-                pts.push([t * d[0], t * d[1], t * d[2]]);
-            }
-        }
-        Cloud::new(pts)
+        use crate::pipeline::free_space::{simulated_scan, to_ground};
+        let wall = |half: f64, c: f64| half / c.abs().max(1e-12);
+        Cloud::new(simulated_scan(10, |d| {
+            wall(20.0, d[0]).min(wall(8.0, d[1])).min(to_ground(d, 2.0))
+        }))
     }
 
     #[test]
