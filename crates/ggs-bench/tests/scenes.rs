@@ -3,7 +3,7 @@
 //! walls): with no flag, every pair within the LiDAR thresholds (5°, 0.6 m). Overlap alone
 //! cannot tell the right pose there; the free space each scan saw from its origin does
 //! (docs/pipeline.md, "Free space"). Without it, the overlap's choice on the 104° pair is a
-//! 90° turn, and the free space flags it.
+//! 90° turn, and the free space and the ambiguity both flag it.
 //!
 //! Prints, per pair, the error, the chosen and the right pose's ranks and the confidence
 //! (`cargo test --release -p ggs-bench --test scenes -- --nocapture`).
@@ -87,6 +87,14 @@ fn without_free_space_the_overlap_picks_a_turn_and_free_space_flags_it() {
     assert!(
         reg.warnings.iter().any(|w| w.starts_with("free space:")),
         "the wrong pose is not flagged: {:?}",
+        reg.warnings
+    );
+    // The right pose verifies at 0.97 of the turn's score without free space: ambiguous
+    // (the ratio 0.9), with the warning that says so.
+    assert!(reg.ambiguous, "confidence {}", reg.confidence);
+    assert!(
+        reg.warnings.iter().any(|w| w.starts_with("ambiguous:")),
+        "{:?}",
         reg.warnings
     );
     let reg = register(&source, &target, &RegistrationConfig::default()).unwrap();

@@ -135,7 +135,9 @@ fn summary_html(s: &Summary, metres: bool) -> String {
          <th>median s / pair</th></tr></thead><tbody><tr><td class=\"l\">{}</td><td>{}</td>\
          <td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>\
          </tbody></table><p class=\"sub\">RR: successes over all pairs; RRE / RTE means over the \
-         successful pairs, \"all\" over every pair with an estimate.</p>",
+         successful pairs, \"all\" over every pair with an estimate.</p>\
+         <p class=\"sub\">Flagged (ambiguous, a warning, or no result): {} of {} failures; {} of {} \
+         successes (false alarms).</p>",
         s.successes,
         s.pairs,
         num(100.0 * s.recall, 2),
@@ -147,7 +149,11 @@ fn summary_html(s: &Summary, metres: bool) -> String {
         num(s.mean_rre_all, 3),
         num(scale * s.mean_rte_all, 3),
         s.failed_to_run,
-        num(s.median_total_ms / 1e3, 2)
+        num(s.median_total_ms / 1e3, 2),
+        s.failures_flagged,
+        s.pairs - s.successes,
+        s.successes_flagged,
+        s.successes
     )
 }
 

@@ -366,6 +366,7 @@ fn fill_row(row: &mut PairRow, reg: &Registration, truth: &Rigid) {
     row.first_look = reg.first_look.map(|f| f.accepted);
     row.confidence = reg.confidence;
     row.ambiguous = reg.ambiguous;
+    row.warnings = reg.warnings.join(" | ");
     row.rre = rre(&reg.transform, truth);
     row.rte = rte(&reg.transform, truth);
     row.success = is_success(row.rre, row.rte, row.max_rre_deg, row.max_rte);

@@ -26,6 +26,11 @@ pub struct Summary {
     pub mean_rte_all: f64,
     /// Median of the per-pair total time, ms.
     pub median_total_ms: f64,
+    /// Unsuccessful pairs whose result says it may be wrong ([`PairRow::flagged`]): wrong
+    /// answers that are not silent.
+    pub failures_flagged: usize,
+    /// Successful pairs flagged all the same: false alarms.
+    pub successes_flagged: usize,
 }
 
 fn mean(v: impl Iterator<Item = f64>) -> f64 {
@@ -58,6 +63,8 @@ impl Summary {
             mean_rre_all: mean(ran.iter().map(|r| r.rre)),
             mean_rte_all: mean(ran.iter().map(|r| r.rte)),
             median_total_ms: times.get(times.len() / 2).copied().unwrap_or(f64::NAN),
+            failures_flagged: rows.iter().filter(|r| !r.success && r.flagged()).count(),
+            successes_flagged: ok.iter().filter(|r| r.flagged()).count(),
         }
     }
 
@@ -102,17 +109,25 @@ impl Summary {
              the successful pairs, \"all\" over every pair with an estimate.\n",
             self.pairs, self.failed_to_run
         );
+        s += &format!(
+            "Flagged (ambiguous, a warning, or no result): {} of {} failures; {} of {} \
+             successes (false alarms).\n",
+            self.failures_flagged,
+            self.pairs - self.successes,
+            self.successes_flagged,
+            self.successes
+        );
         let failed: Vec<&PairRow> = rows.iter().filter(|r| !r.success).collect();
         if !failed.is_empty() {
             s += &format!("\n## Unsuccessful pairs ({})\n\n", failed.len());
-            s += "| pair | RRE ° | RTE | coarse RRE ° | coarse RTE | chosen rank / verified | confidence | ambiguous | error |\n|---|---|---|---|---|---|---|---|---|\n";
+            s += "| pair | RRE ° | RTE | coarse RRE ° | coarse RTE | chosen rank / verified | confidence | ambiguous | warnings | error |\n|---|---|---|---|---|---|---|---|---|---|\n";
             for r in failed {
                 let rank = match (r.chosen_rank, r.verified) {
                     (Some(c), Some(v)) => format!("{} / {v}", c + 1),
                     _ => "n/a".into(),
                 };
                 s += &format!(
-                    "| {} | {:.3} | {:.4} | {:.3} | {:.4} | {rank} | {:.3} | {} | {} |\n",
+                    "| {} | {:.3} | {:.4} | {:.3} | {:.4} | {rank} | {:.3} | {} | {} | {} |\n",
                     r.id,
                     r.rre,
                     r.rte,
@@ -120,6 +135,7 @@ impl Summary {
                     r.coarse_rte,
                     r.confidence,
                     if r.ambiguous { "yes" } else { "no" },
+                    r.warnings.replace('|', "/"),
                     r.error.as_deref().unwrap_or("").replace('|', "/")
                 );
             }
@@ -294,6 +310,36 @@ mod tests {
         r.max_rre_deg = 15.0;
         r.max_rte = 0.3;
         r
+    }
+
+    #[test]
+    fn failures_and_successes_flagged_are_counted_apart() {
+        let mut silent = row("silent", 90.0, 2.0, false);
+        silent.confidence = 0.7;
+        let mut ambiguous = row("ambiguous", 170.0, 1.0, false);
+        ambiguous.ambiguous = true;
+        let mut warned = row("warned", 45.0, 1.0, false);
+        warned.warnings = "free space: 9.0 % of the points lie …".into();
+        let mut unreadable = row("unreadable", f64::NAN, f64::NAN, false);
+        unreadable.error = Some("unreadable".into());
+        let mut alarm = row("alarm", 1.0, 0.1, true);
+        alarm.ambiguous = true;
+        let rows = vec![
+            silent,
+            ambiguous,
+            warned,
+            unreadable,
+            alarm,
+            row("clear", 1.0, 0.1, true),
+        ];
+        let s = Summary::of("scenes", &rows);
+        assert_eq!((s.failures_flagged, s.successes_flagged), (3, 1));
+        let md = s.markdown(&rows, true);
+        assert!(
+            md.contains("3 of 4 failures; 1 of 2 successes (false alarms)"),
+            "{md}"
+        );
+        assert!(md.contains("free space: 9.0 %"), "{md}");
     }
 
     #[test]

@@ -66,6 +66,8 @@ pub struct PairRow {
     pub total_ms: f64,
     /// Why the pair could not be registered.
     pub error: Option<String>,
+    /// The registration's warnings, joined by `" | "` (empty: none).
+    pub warnings: String,
 }
 
 /// Column names, in file order.
@@ -105,10 +107,11 @@ pub const COLUMNS: [&str; N] = [
     "refine_ms",
     "total_ms",
     "error",
+    "warnings",
 ];
 
 /// The number of columns.
-const N: usize = 35;
+const N: usize = 36;
 
 impl PairRow {
     /// An empty row for a pair (errors NaN until measured).
@@ -149,6 +152,7 @@ impl PairRow {
             refine_ms: 0.0,
             total_ms: 0.0,
             error: None,
+            warnings: String::new(),
         }
     }
 
@@ -198,6 +202,7 @@ impl PairRow {
             self.total_ms.to_string(),
             // One line per row, whatever the message.
             opt(&self.error).replace(['\n', '\r'], " "),
+            self.warnings.replace(['\n', '\r'], " "),
         ];
         fields
             .iter()
@@ -272,7 +277,15 @@ impl PairRow {
             refine_ms: p(&f, 32)?,
             total_ms: p(&f, 33)?,
             error: o(&f, 34)?,
+            warnings: f[35].clone(),
         })
+    }
+}
+
+impl PairRow {
+    /// Whether the result says it may be wrong: ambiguous, warned, or no result at all.
+    pub fn flagged(&self) -> bool {
+        self.ambiguous || !self.warnings.is_empty() || self.error.is_some()
     }
 }
 
@@ -418,6 +431,7 @@ mod tests {
         r.transform = (0..16).map(|k| k as f64 / 7.0).collect();
         r.total_ms = 12.5;
         r.error = Some("line one\nline two".into());
+        r.warnings = "ambiguous: a pose 90° away, verifies at 0.5 | free space: 4.0 %".into();
         r
     }
 
