@@ -206,7 +206,9 @@ class Result:
         """The verified hypotheses in coarse rank order (rank, rotation_index, match_score,
         polished_match_score, score, fitness_source, fitness_target, iterations,
         rejected_early, at_a_glance: rejected on a random part of the points,
-        evidence_points: the source and target points the score summed, level, settled,
+        evidence_points: the source and target points the score summed,
+        free_space_violations: the share of points in the space the other cloud, a scan
+        from its origin, saw through (None when neither cloud is one), level, settled,
         same_as: the rank of the earlier hypothesis whose
         pose it reached and whose score it carries, or None; screened: verified by the
         first look's screening, on cells of one voxel; chosen, runner_up,

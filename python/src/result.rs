@@ -68,6 +68,7 @@ fn verified_list<'py>(py: Python<'py>, reg: &Registration) -> PyResult<Bound<'py
         d.set_item("rejected_early", h.rejected_early)?;
         d.set_item("at_a_glance", h.at_a_glance)?;
         d.set_item("evidence_points", h.evidence.points.to_vec())?;
+        d.set_item("free_space_violations", h.evidence.free_space_violations)?;
         let level = match h.level {
             ggs::pipeline::HypothesisLevel::Voxel => "voxel",
             ggs::pipeline::HypothesisLevel::Coarse => "coarse",

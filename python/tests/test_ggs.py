@@ -135,6 +135,8 @@ def test_register_bundled_pair_and_result_fields():
     chosen = [h for h in r.verified if h["chosen"]]
     assert len(chosen) == 1 and chosen[0]["rank"] == r.chosen_rank
     assert all(0.0 <= h["score"] <= 1.0 for h in r.verified)
+    # Object scans are not scans from their origin: no free space is checked.
+    assert all(h["free_space_violations"] is None for h in r.verified)
     # The chosen one is scored over every sample point; one rejected at a glance over fewer.
     assert not chosen[0]["at_a_glance"] and len(chosen[0]["evidence_points"]) == 2
     for h in r.verified:
