@@ -80,6 +80,26 @@ def run_ggs(exe, threads, given_voxel=True):
     return register
 
 
+def small_gicp_refine(threads, skipped):
+    """small_gicp's GICP from `init` (downsampling at V/2, max distance V), as a function of
+    (source points, target points, init, V); None, saying what is `skipped`, when small_gicp
+    is not installed."""
+    try:
+        import small_gicp
+    except ImportError:
+        print(f"small_gicp not installed (pip install small_gicp): {skipped} skipped", file=sys.stderr)
+        return None
+
+    def refine(src, tgt, init, voxel):
+        r = small_gicp.align(
+            tgt, src, init_T_target_source=init, downsampling_resolution=voxel / 2,
+            max_correspondence_distance=voxel, num_threads=threads,
+        )
+        return np.asarray(r.T_target_source)
+
+    return refine
+
+
 def open3d_methods(threads):
     try:
         import open3d as o3d
@@ -129,21 +149,16 @@ def open3d_methods(threads):
         "open3d": with_open3d_gicp,
         "open3d, GICP at V": lambda s, t, v: with_open3d_gicp(s, t, v, downsampled=True),
     }
-    try:
-        import small_gicp
-    except ImportError:
-        print("small_gicp not installed (pip install small_gicp): its rows are skipped", file=sys.stderr)
+    gicp = small_gicp_refine(threads, "its rows are")
+    if gicp is None:
         return methods
 
     def with_small_gicp(src_path, tgt_path, voxel):
         src, tgt = read(src_path), read(tgt_path)
         t0 = time.perf_counter()
         init, _, _ = ransac(src, tgt, voxel)
-        r = small_gicp.align(
-            np.asarray(tgt.points), np.asarray(src.points), init_T_target_source=init,
-            downsampling_resolution=voxel / 2, max_correspondence_distance=voxel, num_threads=threads,
-        )
-        return np.asarray(r.T_target_source), time.perf_counter() - t0
+        t = gicp(np.asarray(src.points), np.asarray(tgt.points), init, voxel)
+        return t, time.perf_counter() - t0
 
     methods["open3d+small_gicp"] = with_small_gicp
     return methods
@@ -182,21 +197,15 @@ def kiss_matcher_methods(threads):
         return t, time.perf_counter() - t0
 
     methods = {"kiss-matcher": alone}
-    try:
-        import small_gicp
-    except ImportError:
-        print("small_gicp not installed (pip install small_gicp): KISS-Matcher + GICP is skipped", file=sys.stderr)
+    gicp = small_gicp_refine(threads, "KISS-Matcher + GICP is")
+    if gicp is None:
         return methods
 
     def with_gicp(src_path, tgt_path, voxel):
         src, tgt = read_points(src_path), read_points(tgt_path)
         t0 = time.perf_counter()
-        init = estimate(src, tgt, voxel)
-        r = small_gicp.align(
-            tgt, src, init_T_target_source=init, downsampling_resolution=voxel / 2,
-            max_correspondence_distance=voxel, num_threads=threads,
-        )
-        return np.asarray(r.T_target_source), time.perf_counter() - t0
+        t = gicp(src, tgt, estimate(src, tgt, voxel), voxel)
+        return t, time.perf_counter() - t0
 
     methods["kiss-matcher + GICP"] = with_gicp
     return methods
