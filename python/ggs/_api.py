@@ -401,8 +401,8 @@ def register(
       minimum kept (16).
     max_distance, distance_quantile, max_iterations, neighbors: the final refinement's, as in
       :func:`refine`; refine_cell: it runs on both clouds thinned to cells of this many voxels
-      (default preset 0.2, stopping at steps below 1e-5 rad; 0: full resolution and the
-      reference stopping rules, as ``preset="paper"``).
+      (default preset 0.2, stopping at steps below 1e-4 rad and 1e-4 source radii; 0: full
+      resolution and the reference stopping rules, as ``preset="paper"``).
     threads: worker threads (None: all cores); the result does not depend on it.
     progress: called as ``progress(rotations_scored, total)`` while the search runs.
 

@@ -12,8 +12,8 @@ use ggs::rotations::RotationSet;
 /// flags that change it.
 #[derive(Args, Clone)]
 pub struct PipelineArgs {
-    /// default: full-SO(3) set, coarse-to-fine, polish and verification of the distinct
-    /// hypotheses, GICP; paper: the GGS paper's configuration (limited15, exhaustive, one
+    /// default: full-SO(3) set, coarse-to-fine, verification of the distinct hypotheses
+    /// (checking the free space of clouds that are scans from their origin), GICP; paper: the GGS paper's configuration (limited15, exhaustive, one
     /// hypothesis, GICP).
     #[arg(long, default_value = "default")]
     pub preset: String,
@@ -30,8 +30,9 @@ pub struct PipelineArgs {
     #[arg(long, value_name = "F")]
     pub margin: Option<f64>,
     /// How the verification scores a pose: tight (default: each point within D counts by
-    /// 1 − d²/D², so an exact small overlap beats a loose large one) or fitness (the share of
-    /// points within D, the score before 0.2).
+    /// 1 − d²/D², so an exact small overlap beats a loose large one), fitness (the share of
+    /// points within D) or oriented (tight, counting only points whose normals, turned away
+    /// from their cloud's centroid, face the same way: single views of convex objects).
     #[arg(long, value_name = "SCORE")]
     pub verify_score: Option<String>,
     /// Take the coarse winner without verification.
@@ -51,7 +52,7 @@ pub struct PipelineArgs {
     #[arg(long)]
     pub refine: Option<String>,
     /// Final refinement on both clouds thinned to cells of this many voxels (default preset
-    /// 0.2, stopping at steps below 1e-5 rad; 0: full resolution and the reference stopping
+    /// 0.2, stopping at steps below 1e-4 rad and 1e-4 source radii; 0: full resolution and the reference stopping
     /// rules, as --preset paper).
     #[arg(long, value_name = "VOXELS")]
     pub refine_cell: Option<f64>,
