@@ -80,6 +80,18 @@ def run_ggs(exe, threads, given_voxel=True):
     return register
 
 
+def timed(read, register):
+    """A method of the table: `register(source, target, V)` on the clouds `read` loads,
+    timed from the loaded clouds (registration only)."""
+    def run(src_path, tgt_path, voxel):
+        src, tgt = read(src_path), read(tgt_path)
+        t0 = time.perf_counter()
+        t = register(src, tgt, voxel)
+        return t, time.perf_counter() - t0
+
+    return run
+
+
 def small_gicp_refine(threads, skipped):
     """small_gicp's GICP from `init` (downsampling at V/2, max distance V), as a function of
     (source points, target points, init, V); None, saying what is `skipped`, when small_gicp
@@ -153,14 +165,11 @@ def open3d_methods(threads):
     if gicp is None:
         return methods
 
-    def with_small_gicp(src_path, tgt_path, voxel):
-        src, tgt = read(src_path), read(tgt_path)
-        t0 = time.perf_counter()
+    def ransac_then_small_gicp(src, tgt, voxel):
         init, _, _ = ransac(src, tgt, voxel)
-        t = gicp(np.asarray(src.points), np.asarray(tgt.points), init, voxel)
-        return t, time.perf_counter() - t0
+        return gicp(np.asarray(src.points), np.asarray(tgt.points), init, voxel)
 
-    methods["open3d+small_gicp"] = with_small_gicp
+    methods["open3d+small_gicp"] = timed(read, ransac_then_small_gicp)
     return methods
 
 
@@ -190,24 +199,13 @@ def kiss_matcher_methods(threads):
         t[:3, 3] = np.asarray(sol.translation).ravel() / k
         return t
 
-    def alone(src_path, tgt_path, voxel):
-        src, tgt = read_points(src_path), read_points(tgt_path)
-        t0 = time.perf_counter()
-        t = estimate(src, tgt, voxel)
-        return t, time.perf_counter() - t0
-
-    methods = {"kiss-matcher": alone}
+    methods = {"kiss-matcher": timed(read_points, estimate)}
     gicp = small_gicp_refine(threads, "KISS-Matcher + GICP is")
     if gicp is None:
         return methods
-
-    def with_gicp(src_path, tgt_path, voxel):
-        src, tgt = read_points(src_path), read_points(tgt_path)
-        t0 = time.perf_counter()
-        t = gicp(src, tgt, estimate(src, tgt, voxel), voxel)
-        return t, time.perf_counter() - t0
-
-    methods["kiss-matcher + GICP"] = with_gicp
+    methods["kiss-matcher + GICP"] = timed(
+        read_points, lambda src, tgt, voxel: gicp(src, tgt, estimate(src, tgt, voxel), voxel)
+    )
     return methods
 
 

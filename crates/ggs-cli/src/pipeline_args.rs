@@ -13,8 +13,8 @@ use ggs::rotations::RotationSet;
 #[derive(Args, Clone)]
 pub struct PipelineArgs {
     /// default: full-SO(3) set, coarse-to-fine, verification of the distinct hypotheses
-    /// (checking the free space of clouds that are scans from their origin), GICP; paper: the GGS paper's configuration (limited15, exhaustive, one
-    /// hypothesis, GICP).
+    /// (checking the free space of clouds that are scans from their origin), GICP; paper:
+    /// the GGS paper's configuration (limited15, exhaustive, one hypothesis, GICP).
     #[arg(long, default_value = "default")]
     pub preset: String,
     /// Built-in rotation set: hopf15-id (default), limited15, full15, limited10, hopf15,
@@ -52,8 +52,8 @@ pub struct PipelineArgs {
     #[arg(long)]
     pub refine: Option<String>,
     /// Final refinement on both clouds thinned to cells of this many voxels (default preset
-    /// 0.2, stopping at steps below 1e-4 rad and 1e-4 source radii; 0: full resolution and the reference stopping
-    /// rules, as --preset paper).
+    /// 0.2, stopping at steps below 1e-4 rad and 1e-4 source radii; 0: full resolution and
+    /// the reference stopping rules, as --preset paper).
     #[arg(long, value_name = "VOXELS")]
     pub refine_cell: Option<f64>,
     #[command(flatten)]

@@ -44,11 +44,23 @@ const NEAR_SHARE: f64 = 1e-3;
 const AZIMUTH_BINS: usize = (360.0 / BIN_DEG) as usize;
 const ELEVATION_BINS: usize = (180.0 / BIN_DEG) as usize;
 
+/// Distance of `p` from the origin.
+#[inline]
+fn range(p: &Point) -> f64 {
+    (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt()
+}
+
+/// Azimuth `atan2(y, x)` of `p`, degrees in `[0, 360]`.
+#[inline]
+fn azimuth_deg(p: &Point) -> f64 {
+    p[1].atan2(p[0]).to_degrees() + 180.0
+}
+
 /// Range `r`, azimuth and elevation bins of `p` (from the origin).
 #[inline]
 fn direction_bin(p: &Point) -> (f64, usize, usize) {
-    let r = (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt();
-    let azimuth = p[1].atan2(p[0]).to_degrees() + 180.0;
+    let r = range(p);
+    let azimuth = azimuth_deg(p);
     let elevation = (p[2] / r).clamp(-1.0, 1.0).asin().to_degrees() + 90.0;
     let a = ((azimuth / BIN_DEG) as usize).min(AZIMUTH_BINS - 1);
     let e = ((elevation / BIN_DEG) as usize).min(ELEVATION_BINS - 1);
@@ -89,12 +101,10 @@ pub fn origin_is_scanner(points: &[Point]) -> bool {
     let diagonal = diagonal(min, max);
     let sectors = (360.0 / SECTOR_DEG) as usize;
     let mut covered = vec![false; sectors];
-    let mut ranges: Vec<f64> = Vec::with_capacity(points.len());
     for p in points {
-        let azimuth = p[1].atan2(p[0]).to_degrees() + 180.0;
-        covered[((azimuth / SECTOR_DEG) as usize).min(sectors - 1)] = true;
-        ranges.push((p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt());
+        covered[((azimuth_deg(p) / SECTOR_DEG) as usize).min(sectors - 1)] = true;
     }
+    let mut ranges: Vec<f64> = points.iter().map(range).collect();
     let share = covered.iter().filter(|&&c| c).count() as f64 / sectors as f64;
     let mid = ranges.len() / 2;
     let median = *ranges.select_nth_unstable_by(mid, f64::total_cmp).1;

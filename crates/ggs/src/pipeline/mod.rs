@@ -658,10 +658,12 @@ fn assess(
     let verified_ratio = verification.and_then(|v| {
         let chosen = &v.hypotheses[v.chosen];
         let best = chosen.evidence.score;
-        if best < LOW_EVIDENCE {
+        // The overlap alone (the score before any free-space penalty, which warns apart).
+        let overlap = 0.5 * (chosen.evidence.fitness_source + chosen.evidence.fitness_target);
+        if overlap < LOW_EVIDENCE {
             warnings.push(format!(
                 "low evidence: only {:.0} % of the points lie within {:.3} of the other cloud after alignment; the result is probably wrong",
-                100.0 * best,
+                100.0 * overlap,
                 v.distance
             ));
         }

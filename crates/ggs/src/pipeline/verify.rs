@@ -360,6 +360,16 @@ impl Verifier {
         self.free_space_margin
     }
 
+    /// `v`: the mean over the checked sides of the share of their summed points (`points`)
+    /// that violate the other cloud's free space (`violating`); `None` when no side is checked.
+    fn free_space_share(&self, violating: [u64; 2], points: [usize; 2]) -> Option<f64> {
+        let checked = (0..2).filter(|&k| self.free_space[k].is_some());
+        let (sum, sides) = checked.fold((0.0, 0usize), |(sum, n), k| {
+            (sum + violating[k] as f64 / points[k] as f64, n + 1)
+        });
+        (sides > 0).then(|| sum / sides as f64)
+    }
+
     /// The evidence for `T` (`p_target = T · p_source`).
     pub fn evidence(&self, t: &Rigid) -> Evidence {
         self.evidence_over(t, None)
@@ -410,16 +420,8 @@ impl Verifier {
         let points = [summed(&self.source, 0), summed(&self.target, 1)];
         let fs = matched_source as f64 / WEIGHT_ONE as f64 / points[0] as f64;
         let ft = matched_target as f64 / WEIGHT_ONE as f64 / points[1] as f64;
-        let shares = [
-            violating_source as f64 / points[0] as f64,
-            violating_target as f64 / points[1] as f64,
-        ];
-        let sides: Vec<f64> = (0..2)
-            .filter(|&k| self.free_space[k].is_some())
-            .map(|k| shares[k])
-            .collect();
         let free_space_violations =
-            (!sides.is_empty()).then(|| sides.iter().sum::<f64>() / sides.len() as f64);
+            self.free_space_share([violating_source, violating_target], points);
         let excess =
             free_space_violations.map_or(0.0, |v| (v - self.free_space_tolerance).max(0.0));
         let penalty = self.free_space_weight * excess;
