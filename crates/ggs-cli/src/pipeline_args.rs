@@ -133,7 +133,7 @@ pub struct SearchArgs {
     /// grid neighbours at the voxel size (much faster; same answers on every benchmark pair).
     #[arg(long, value_name = "MODE")]
     pub search: Option<String>,
-    /// Correlation arithmetic: mixed (f32 with proven error bounds, f64 re-scoring of every
+    /// Correlation arithmetic: mixed (f32 with proven error bounds, exact re-scoring of every
     /// rotation whose bound reaches the best: same picks as f64) or f64.
     #[arg(long, default_value = "mixed")]
     pub precision: String,

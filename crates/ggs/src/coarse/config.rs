@@ -129,8 +129,9 @@ impl CoarseToFine {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Precision {
-    /// f32 transforms with a proven error bound for every rotation, then f64 re-scoring of
-    /// every rotation whose bound reaches the best exact score (the default; 2–3× faster).
+    /// f32 transforms with a proven error bound for every rotation, then an exact
+    /// re-scoring of every rotation whose bound reaches the best exact score (the default;
+    /// 2–3× faster).
     Mixed,
     /// f64 for every rotation: every score is an exact integer.
     F64,

@@ -101,6 +101,17 @@ impl Candidates {
     }
 }
 
+/// An exact re-scoring of one rotation against a floor ([`Correlator::exact_among`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Rescored {
+    /// The exact best offset.
+    Exact(BestOffset),
+    /// The exact best match score is at most this (below the floor asked for).
+    Below(i64),
+    /// Not settled without a full exact correlation (too many offsets to count).
+    TooMany,
+}
+
 /// Approximate best of one rotation from a reduced-precision correlation: the largest
 /// computed output and a bound on how far the exact best match score can be from it,
 /// `|max_a m(a) − value| ≤ error_bound`.
@@ -220,18 +231,23 @@ pub trait Correlator: Send + Sync {
         src: &RotatedSources<'_>,
         indices: &[usize],
     ) -> Result<(Vec<BestOffset>, StageTimes)>;
-    /// [`Self::exact`], given for each rotation the candidates of its approximate best
-    /// (`candidates[i]` for `indices[i]`): a backend may then compute the match score at those
-    /// offsets alone. The default correlates again.
+    /// Exact re-scoring of the rotations `indices` where it matters against a floor: the exact
+    /// best of `indices[i]` when it reaches `at_least`, else [`Rescored::Below`] or the exact
+    /// best. `candidates[i]` are the candidates of its approximate best: a backend may then
+    /// count the match score at those offsets alone. The default correlates exactly again.
+    /// Never [`Rescored::TooMany`].
     fn exact_among(
         &self,
         ctl: &PassControl<'_>,
         src: &RotatedSources<'_>,
         indices: &[usize],
         candidates: &[Candidates],
-    ) -> Result<(Vec<BestOffset>, StageTimes)> {
+        at_least: f64,
+    ) -> Result<(Vec<Rescored>, StageTimes)> {
         debug_assert_eq!(indices.len(), candidates.len());
-        self.exact(ctl, src, indices)
+        let _ = at_least;
+        let (found, times) = self.exact(ctl, src, indices)?;
+        Ok((found.into_iter().map(Rescored::Exact).collect(), times))
     }
     /// Approximate bests with proven bounds, in the order of `indices`. The default is the
     /// exact scores as intervals of width 0, for a backend with no faster approximate path.

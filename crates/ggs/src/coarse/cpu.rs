@@ -25,8 +25,9 @@
 //! Precision: the correlator is generic over the sample type. In f64 the outputs are rounded
 //! to the integers they equal ([`CpuCorrelator::best_offset`]). In f32 (twice the SIMD lanes,
 //! 2–3× faster transforms) they are approximations with a proven error bound
-//! ([`CpuCorrelator::approx_best`], [`CpuCorrelator::error_bound`]); the search re-scores in
-//! f64 every rotation whose bound reaches the best exact score, so its picks are the f64 ones.
+//! ([`CpuCorrelator::approx_best`], [`CpuCorrelator::error_bound`]); the search re-scores
+//! exactly every rotation whose bound reaches the best exact score, so its picks are the f64
+//! ones. The kernel's window enters the spectrum or is counted beside it ([`KernelWindow`]).
 
 pub use super::correlator::{ApproxBest, BestOffset, Candidates, MAX_CANDIDATES};
 use super::direct::{DirectKernel, DirectScratch};
@@ -37,6 +38,8 @@ pub use super::grid_view::Real;
 use super::sparse::{SparseKernel, SparseScratch};
 use super::transpose::transpose;
 use super::voxel::Occupancy;
+pub use super::window::KernelWindow;
+use super::window::WindowCounts;
 use super::zaxis::ZAxis;
 use rustfft::num_complex::Complex;
 
@@ -49,6 +52,15 @@ type C64 = Complex<f64>;
 /// [`CpuCorrelator::approx_best`] stops collecting candidate offsets when more than this many
 /// reach within twice the bound of the best so far (a flat correlation): too many to keep.
 const NEAR_CAP: usize = 4096;
+
+/// What [`CpuCorrelator::scan_near`] found: the largest output and its offset, and whether
+/// the offsets near it were all kept.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct NearScan {
+    pub best: f64,
+    pub offset: [usize; 3],
+    pub complete: bool,
+}
 
 /// Round to the nearest integer (ties to even) for |v| < 2^51, without a libm call:
 /// adding and subtracting 1.5·2^52 leaves no fraction bits.
@@ -68,9 +80,12 @@ pub struct CpuCorrelator<T: Real = f64> {
     ifft_y: Arc<dyn Fft<T>>,
     fft_x: Arc<dyn Fft<T>>,
     ifft_x: Arc<dyn Fft<T>>,
-    /// conj(FFT(6·O_k − 1)) / (Lx·Ly·Lz), layout [y][kz][x] (computed in f64).
+    /// conj(FFT(6·O_k − 1)) / (Lx·Ly·Lz), or of `6·O_k` when the window is counted,
+    /// layout [y][kz][x] (computed in f64).
     kernel: Vec<Complex<T>>,
-    /// `max_j |FFT(6·O_k − 1)_j|`, unnormalized (for the error bound).
+    /// How the window's −1 enters the outputs ([`KernelWindow`]).
+    window: KernelWindow,
+    /// `max_j |K_j|` of that spectrum, unnormalized (for the error bound).
     kernel_peak: f64,
     scratch_len: usize,
     /// Cells of the kernel grid, |K|.
@@ -106,6 +121,10 @@ pub struct Workspace<T: Real = f64> {
     near_best: Vec<(T, [usize; 3])>,
     /// Σ over the source grid (its occupied cells), from the spectrum's DC bin.
     occupied_estimate: f64,
+    /// Counts of the source grid's occupied cells over windows, and one row of them
+    /// ([`KernelWindow::Counted`]).
+    window: WindowCounts,
+    window_row: Vec<u32>,
     ns: [usize; 3],
     /// Time spent in the forward transforms (z, y).
     pub t_forward: Duration,
@@ -180,6 +199,37 @@ impl<T: Real> Workspace<T> {
         }
         self.runs_valid = false;
         self.ns = ns;
+    }
+
+    /// Cells per axis of the current source grid.
+    pub(super) fn ns(&self) -> [usize; 3] {
+        self.ns
+    }
+
+    /// The source's occupied cells as the forward stage measured them (padded for rounding).
+    pub(super) fn occupied_estimate(&self) -> f64 {
+        self.occupied_estimate
+    }
+
+    /// The offsets [`CpuCorrelator::scan_near`] kept, x-major C order.
+    pub(super) fn near_offsets(&self) -> impl Iterator<Item = [usize; 3]> + '_ {
+        self.near_best.iter().map(|&(_, a)| a)
+    }
+
+    /// The occupied cells of the current source grid (not yet transformed), x-major C order.
+    pub(super) fn occupied_cells(&self, out: &mut Vec<[usize; 3]>) {
+        out.clear();
+        let [nx, ny, nz] = self.ns;
+        for i in 0..nx {
+            for j in 0..ny {
+                let row = &self.real[(i * self.ay + j) * self.lz..][..nz];
+                for (k, &v) in row.iter().enumerate() {
+                    if v != T::zero() {
+                        out.push([i, j, k]);
+                    }
+                }
+            }
+        }
     }
 
     /// The grid buffer with its strides: write 1 to a cell to mark it occupied (the fast
@@ -284,8 +334,9 @@ fn fft_error(l: usize, u: f64) -> f64 {
 }
 
 /// Conjugate kernel spectrum for `geo` computed in f64 (layout [y][kz][x], scaled by
-/// 1/(Lx·Ly·Lz)) and its unnormalized peak magnitude.
-fn kernel_spectrum(geo: Geometry, kernel: &Occupancy) -> (Vec<C64>, f64) {
+/// 1/(Lx·Ly·Lz)) and its unnormalized peak magnitude: of `6·O_k − 1` over the window, or of
+/// `6·O_k` when `window` is counted.
+fn kernel_spectrum(geo: Geometry, kernel: &Occupancy, window: KernelWindow) -> (Vec<C64>, f64) {
     let mut me = CpuCorrelator::<f64>::plan(geo);
     let [lx, ly, lz] = geo.fft_len;
     let mut ws = me.workspace();
@@ -294,7 +345,12 @@ fn kernel_spectrum(geo: Geometry, kernel: &Occupancy) -> (Vec<C64>, f64) {
     for i in 0..nx {
         for j in 0..ny {
             for k in 0..nz {
-                let v = if kernel.get(i, j, k) { 5.0 } else { -1.0 };
+                let v = match (kernel.get(i, j, k), window) {
+                    (true, KernelWindow::InSpectrum) => 5.0,
+                    (false, KernelWindow::InSpectrum) => -1.0,
+                    (true, KernelWindow::Counted) => 6.0,
+                    (false, KernelWindow::Counted) => 0.0,
+                };
                 ws.real[(i * ws.ay + j) * lz + k] = v;
             }
         }
@@ -317,11 +373,18 @@ fn kernel_spectrum(geo: Geometry, kernel: &Occupancy) -> (Vec<C64>, f64) {
 
 impl<T: Real> CpuCorrelator<T> {
     /// Plan the transforms for `geo` and compute the kernel spectrum of `kernel`
-    /// (whose dims must equal `geo.kernel_dims`) in f64, stored as `T`.
+    /// (whose dims must equal `geo.kernel_dims`) in f64, stored as `T`, with the window
+    /// inside it.
     pub fn new(geo: Geometry, kernel: &Occupancy) -> Self {
+        Self::with_window(geo, kernel, KernelWindow::InSpectrum)
+    }
+
+    /// [`Self::new`] with the window entering as `window` says.
+    pub fn with_window(geo: Geometry, kernel: &Occupancy, window: KernelWindow) -> Self {
         assert_eq!(kernel.dims, geo.kernel_dims);
         let mut me = Self::plan(geo);
-        let (spectrum, peak) = kernel_spectrum(geo, kernel);
+        let (spectrum, peak) = kernel_spectrum(geo, kernel, window);
+        me.window = window;
         let cast = |v: f64| T::from_f64(v).expect("finite spectrum");
         me.kernel = spectrum
             .iter()
@@ -344,6 +407,7 @@ impl<T: Real> CpuCorrelator<T> {
             .map(|c| Complex::new(cast(c.re), cast(c.im)))
             .collect();
         me.kernel_peak = exact.kernel_peak;
+        me.window = exact.window;
         me.kernel_occupied = exact.kernel_occupied;
         me.kernel_cells = exact.kernel_cells;
         me
@@ -376,6 +440,7 @@ impl<T: Real> CpuCorrelator<T> {
             fft_x,
             ifft_x,
             kernel: Vec::new(),
+            window: KernelWindow::InSpectrum,
             kernel_peak: 0.0,
             scratch_len,
             kernel_cells: 0,
@@ -385,6 +450,11 @@ impl<T: Real> CpuCorrelator<T> {
 
     pub fn geometry(&self) -> &Geometry {
         &self.geo
+    }
+
+    /// How the window's −1 enters the outputs.
+    pub fn window(&self) -> KernelWindow {
+        self.window
     }
 
     /// Fresh buffers for one worker.
@@ -483,11 +553,18 @@ impl<T: Real> CpuCorrelator<T> {
     /// spectrum. Derivation: `‖x‖₂ = √occupied`; the forward transform errs by `ε_F·‖X‖₂`,
     /// the product (kernel rounded to `T`, one complex multiply) by `4u·‖X‖₂·max|K|`, the
     /// inverse by `ε_F` of its result, and the 2-norm of the error bounds its largest entry.
-    /// Doubled for second-order terms.
+    /// Doubled for second-order terms. With the window counted, subtracting `W(a)` (an
+    /// integer up to `occupied`, rounded to `T`) from an output of magnitude up to
+    /// `6·occupied + bound` adds `u` of each: `u·(7·occupied + bound)`, doubled.
     pub fn error_bound(&self, occupied: f64) -> f64 {
         let u = T::UNIT_ROUNDOFF;
         let eps: f64 = self.geo.fft_len.iter().map(|&l| fft_error(l, u)).sum();
-        2.0 * (2.0 * eps + 4.0 * u) * occupied.max(0.0).sqrt() * self.kernel_peak
+        let occupied = occupied.max(0.0);
+        let bound = 2.0 * (2.0 * eps + 4.0 * u) * occupied.sqrt() * self.kernel_peak;
+        match self.window {
+            KernelWindow::InSpectrum => bound,
+            KernelWindow::Counted => bound + 2.0 * u * (7.0 * occupied + bound),
+        }
     }
 
     /// Correlate in `T` and return the largest computed output with its error bound and, when
@@ -502,23 +579,52 @@ impl<T: Real> CpuCorrelator<T> {
 
     /// The inverse stage of [`Self::approx_best`], given the outputs' error bound.
     fn approx_scan(&self, ws: &mut Workspace<T>, bound: f64, keep_candidates: bool) -> ApproxBest {
+        let cap = if keep_candidates { NEAR_CAP } else { 0 };
+        let scan = self.scan_near(ws, bound, f64::NEG_INFINITY, cap);
+        let candidates = if scan.complete {
+            Candidates::of(ws.near_best.iter().map(|&(_, a)| a))
+        } else {
+            Candidates::NONE
+        };
+        ws.near_best.clear();
+        ApproxBest {
+            value: scan.best,
+            error_bound: bound,
+            offset: scan.offset,
+            candidates,
+        }
+    }
+
+    /// The inverse stage with the largest output, its offset, and in `ws.near_best` (x-major
+    /// C order) every offset whose output reaches `t − bound` with
+    /// `t = max(at_least, best − bound)`, unless more than `cap` do (`complete: false`).
+    ///
+    /// Every offset where the exact best `M` is reached when `M ≥ t` is among them:
+    /// `computed(a') ≥ M − bound ≥ t − bound`. And `M ≥ best − bound` always (the output of
+    /// `best` is within `bound` of its exact score), so with `at_least = −∞` they settle `M`.
+    pub(super) fn scan_near(
+        &self,
+        ws: &mut Workspace<T>,
+        bound: f64,
+        at_least: f64,
+        cap: usize,
+    ) -> NearScan {
         let mut best = T::neg_infinity();
         let mut offset = [0; 3];
-        // Outputs are kept while they reach `best − 2·bound` for the best so far (which only
-        // rises, so the final list holds the final one's). Compared in f64, where every T
-        // output is exact, with the floor lowered by more than its rounding: keeping more is
-        // safe, missing one is not.
+        // Outputs are kept while they reach the floor of the best so far (which only rises,
+        // so the final list holds the final one's). Compared in f64, where every T output is
+        // exact, with the floor lowered by more than its rounding: keeping more is safe,
+        // missing one is not.
         let floor_of = |best: T| {
-            let b = best.to_f64().unwrap_or(f64::NAN);
-            (b - 2.0 * bound) - (b.abs() + 2.0 * bound) * 1e-12
+            let t = at_least.max(best.to_f64().unwrap_or(f64::NAN) - bound);
+            (t - bound) - (t.abs() + 2.0 * bound) * 1e-12
         };
         let reaches = |v: T, floor: f64| v.to_f64().is_none_or(|v| v >= floor || v.is_nan());
         let mut near = std::mem::take(&mut ws.near_best);
         near.clear();
-        // Pruned when it doubles (linear work in all), given up beyond NEAR_CAP (then no
-        // candidates: the re-scoring correlates in f64, which is always right).
+        // Pruned when it doubles (linear work in all), given up beyond `cap`.
         let mut prune_at = 4 * MAX_CANDIDATES;
-        let mut gave_up = !keep_candidates;
+        let mut gave_up = cap == 0;
         self.stage_inverse_rows(ws, |[ax, ay], first, second| {
             // A branch-free maximum per row; the position only when it wins.
             let m = row_max(first).max(row_max(second));
@@ -540,28 +646,22 @@ impl<T: Real> CpuCorrelator<T> {
                 }
                 if near.len() > prune_at {
                     near.retain(|&(v, _)| reaches(v, floor));
-                    gave_up = near.len() > NEAR_CAP;
+                    gave_up = near.len() > cap;
                     prune_at = (2 * near.len()).max(4 * MAX_CANDIDATES);
                 }
             }
         });
         let floor = floor_of(best);
-        let candidates = if gave_up {
-            Candidates::NONE
-        } else {
-            Candidates::of(
-                near.iter()
-                    .filter(|&&(v, _)| reaches(v, floor))
-                    .map(|&(_, a)| a),
-            )
-        };
-        near.clear();
+        near.retain(|&(v, _)| reaches(v, floor));
+        let complete = !gave_up && near.len() <= cap;
+        if !complete {
+            near.clear();
+        }
         ws.near_best = near;
-        ApproxBest {
-            value: best.to_f64().unwrap_or(f64::NAN),
-            error_bound: bound,
+        NearScan {
+            best: best.to_f64().unwrap_or(f64::NAN),
             offset,
-            candidates,
+            complete,
         }
     }
 
@@ -597,55 +697,6 @@ impl<T: Real> CpuCorrelator<T> {
         }
     }
 
-    /// The exact best among `candidates` (x-major C order) of the source grid in `ws` (not yet
-    /// transformed), straight from the definition: `m(a) = Σ 5·[O_k(u)] − [¬O_k(u)]` over the
-    /// occupied source cells `x` whose `u = x + C − a` falls in the kernel; ties to the first.
-    /// Equal to [`CpuCorrelator::best_offset`] when `candidates` hold every offset reaching the
-    /// best (see [`Candidates`]).
-    pub fn exact_among(
-        &self,
-        ws: &Workspace<T>,
-        kernel: &Occupancy,
-        candidates: impl Iterator<Item = [usize; 3]>,
-    ) -> BestOffset {
-        let lz = ws.lz;
-        let [nx, ny, nz] = ws.ns;
-        let mut cells: Vec<[usize; 3]> = Vec::new();
-        for i in 0..nx {
-            for j in 0..ny {
-                let row = &ws.real[(i * ws.ay + j) * lz..][..nz];
-                for (k, &v) in row.iter().enumerate() {
-                    if v != T::zero() {
-                        cells.push([i, j, k]);
-                    }
-                }
-            }
-        }
-        let c = self.geo.center;
-        let nr = kernel.dims;
-        let mut best = BestOffset {
-            match_score: i64::MIN,
-            offset: [0; 3],
-        };
-        for a in candidates {
-            let mut m = 0i64;
-            for x in &cells {
-                // u = x + C − a, inside the kernel box.
-                let u = [0, 1, 2].map(|d| (x[d] + c[d]).wrapping_sub(a[d]));
-                if u[0] < nr[0] && u[1] < nr[1] && u[2] < nr[2] {
-                    m += if kernel.get(u[0], u[1], u[2]) { 5 } else { -1 };
-                }
-            }
-            if m > best.match_score {
-                best = BestOffset {
-                    match_score: m,
-                    offset: a,
-                };
-            }
-        }
-        best
-    }
-
     /// Every output of the correlation, in x-major C order over the valid offsets.
     fn correlate(&self, ws: &mut Workspace<T>, visit: impl FnMut(T, [usize; 3])) {
         self.stage_forward(ws);
@@ -658,6 +709,11 @@ impl<T: Real> CpuCorrelator<T> {
     pub fn stage_forward(&self, ws: &mut Workspace<T>) {
         let t0 = Instant::now();
         let nsx = ws.ns[0];
+        if self.window == KernelWindow::Counted {
+            let (real, ay, lz) = (&ws.real, ws.ay, ws.lz);
+            ws.window
+                .build(ws.ns, |x, y, z| real[(x * ay + y) * lz + z] != T::zero());
+        }
         self.forward_zy(ws);
         // DC bins along y and z: per-x sums of the source grid. Their total is the number of
         // occupied cells (up to rounding: pad it for the error bound).
@@ -744,13 +800,30 @@ impl<T: Real> CpuCorrelator<T> {
                     &mut ws.scratch,
                 );
                 for ay in 0..nsy {
-                    let row = &ws.rrows[ay * lz..(ay + 1) * lz];
+                    let row = &mut ws.rrows[ay * lz..(ay + 1) * lz];
+                    if self.window == KernelWindow::Counted {
+                        let w = &mut ws.window_row;
+                        w.resize(nsz, 0);
+                        ws.window
+                            .row(ax, ay, self.geo.center, self.geo.kernel_dims, w);
+                        let (tail, head) = w.split_at(first);
+                        subtract_counts(&mut row[z_tail.clone()], tail);
+                        subtract_counts(&mut row[z_head.clone()], head);
+                    }
                     visit_row([ax, ay], &row[z_tail.clone()], &row[z_head.clone()]);
                 }
             }
             a0 += nb;
         }
         ws.t_inverse += t2.elapsed();
+    }
+}
+
+/// `out[i] ← out[i] − counts[i]` (`W(a)` taken off the outputs of a counted window).
+#[inline(always)]
+fn subtract_counts<T: Real>(out: &mut [T], counts: &[u32]) {
+    for (v, &w) in out.iter_mut().zip(counts) {
+        *v = *v - T::from_u32(w).unwrap_or_else(T::nan);
     }
 }
 
@@ -904,8 +977,12 @@ mod tests {
     }
 
     fn fft_scores(source: &Occupancy, kernel: &Occupancy) -> Vec<i64> {
+        fft_scores_with(source, kernel, KernelWindow::InSpectrum)
+    }
+
+    fn fft_scores_with(source: &Occupancy, kernel: &Occupancy, w: KernelWindow) -> Vec<i64> {
         let geo = Geometry::new(kernel.dims, source.dims);
-        let c = CpuCorrelator::new(geo, kernel);
+        let c = CpuCorrelator::with_window(geo, kernel, w);
         let mut ws = c.workspace();
         ws.load(source);
         c.all_scores(&mut ws)
@@ -924,6 +1001,41 @@ mod tests {
             let k = occupancy(kd, &kbits);
             prop_assert_eq!(fft_scores(&s, &k), brute_force_scores(&s, &k));
         }
+
+        #[test]
+        fn fft_with_the_window_counted_equals_brute_force(
+            sd in prop::array::uniform3(1usize..8),
+            kd in prop::array::uniform3(1usize..8),
+            sbits in prop::collection::vec(any::<bool>(), 1..64),
+            kbits in prop::collection::vec(any::<bool>(), 1..64),
+        ) {
+            let s = occupancy(sd, &sbits);
+            let k = occupancy(kd, &kbits);
+            let counted = fft_scores_with(&s, &k, KernelWindow::Counted);
+            prop_assert_eq!(counted, brute_force_scores(&s, &k));
+        }
+    }
+
+    /// With the window counted, a sparse kernel's f32 bound is several times smaller (the
+    /// spectrum's peak is `6·n_k`, not `|K| − 6·n_k`), and still holds.
+    #[test]
+    fn counting_the_window_shrinks_the_bound_of_a_sparse_kernel() {
+        let mut next = crate::test_rng::uniform(5);
+        let k = random_occupancy([24, 20, 16], 0.02, &mut next);
+        let src = random_occupancy([14, 15, 13], 0.05, &mut next);
+        let geo = Geometry::new(k.dims, src.dims);
+        let exact = brute_force_scores(&src, &k);
+        let max = *exact.iter().max().unwrap() as f64;
+        let mut bounds = Vec::new();
+        for w in [KernelWindow::InSpectrum, KernelWindow::Counted] {
+            let c = CpuCorrelator::<f32>::with_window(geo, &k, w);
+            let mut ws = c.workspace();
+            ws.load(&src);
+            let a = c.approx_best(&mut ws, false);
+            assert!((a.value - max).abs() <= a.error_bound, "{w:?}");
+            bounds.push(a.error_bound);
+        }
+        assert!(bounds[1] * 4.0 < bounds[0], "bounds {bounds:?}");
     }
 
     /// The f32 pass's candidates hold every offset where the exact best is reached, and the
@@ -1043,7 +1155,7 @@ mod tests {
     }
 
     /// A flat correlation (an empty source: every output ties at 0) keeps no candidates, so
-    /// a re-scoring correlates in f64; collecting stops early instead of growing with the grid.
+    /// a re-scoring correlates again; collecting stops early instead of growing with the grid.
     #[test]
     fn a_flat_correlation_keeps_no_candidates() {
         let k = Occupancy {

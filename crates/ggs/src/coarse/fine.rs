@@ -221,8 +221,8 @@ impl<'p> FineLevel<'p> {
             .as_deref()
             .ok_or_else(|| GgsError::param("rotations", "no rotation was scored"))?;
         let src = self.prep.sources(&self.boxes);
-        exact_best(&mut self.scores, eligible, |p, sc| {
-            rescore_exact(corr, ctl, &src, p, sc, tally)
+        exact_best(&mut self.scores, eligible, |p, floor, sc| {
+            rescore_exact(corr, ctl, &src, p, floor, sc, tally)
         })
     }
 

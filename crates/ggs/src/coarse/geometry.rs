@@ -4,6 +4,8 @@
 //! 2·3-smooth (the fastest lengths of rustfft's AVX kernels; docs/performance.md) and long
 //! enough that no circular wrap-around reaches a valid offset (docs/method.md).
 
+use super::window::WindowCounts;
+
 /// `true` if `n` has no prime factor above 3.
 pub fn is_3_smooth(mut n: usize) -> bool {
     if n == 0 {
@@ -114,8 +116,8 @@ impl Geometry {
         )
     }
 
-    /// Bytes of one worker's buffers with `real_bytes` per real sample, saturating at
-    /// `u64::MAX`.
+    /// Bytes of one worker's buffers with `real_bytes` per real sample (and the window's
+    /// counts of a counted kernel window), saturating at `u64::MAX`.
     pub fn workspace_bytes(&self, real_bytes: u64) -> u64 {
         let [lx, ly, lz] = self.fft_len.map(|v| v as u128);
         let kz = self.kz() as u128;
@@ -125,7 +127,8 @@ impl Geometry {
         let zspec = ax * ay * kz * 2;
         let grid = ly * kz * lx * 2;
         let slab = X_BLOCK as u128 * kz * ly * 2;
-        saturate((real + zspec + grid + slab + 8 * (lx + ly + lz)) * real_bytes as u128)
+        let window = WindowCounts::bytes(self.source_max);
+        saturate((real + zspec + grid + slab + 8 * (lx + ly + lz)) * real_bytes as u128 + window)
     }
 }
 

@@ -28,14 +28,18 @@
 //!
 //! Precision ([`Precision::Mixed`], the default): rotations are scored in f32 with a proven
 //! error bound and every rotation whose bound could reach the winner (or a top-k hypothesis,
-//! or the runner-up) is re-scored in f64, so the picks are the all-f64 ones
-//! ([`selection::exact_best`]).
+//! or the runner-up) is re-scored exactly (integer counts at the offsets the bound leaves
+//! open, in the private module `at_offsets`, or an f64 correlation where they are many), so
+//! the picks are the all-f64 ones ([`selection::exact_best`]). On sparse targets the kernel's
+//! empty window is counted beside the transforms ([`cpu::KernelWindow`]), which shrinks the
+//! bound.
 //!
 //! Modes: [`SearchMode::Exhaustive`] scores every rotation at the voxel size;
 //! [`SearchMode::CoarseToFine`] ranks every rotation at a coarser voxel first and scores at the
 //! voxel size only the best and their neighbours, in rounds that look further while the
 //! winner ranks in the lower half of what was kept (docs/performance.md).
 
+mod at_offsets;
 mod blocks;
 pub mod config;
 pub mod correlator;
@@ -58,6 +62,7 @@ pub mod sparse;
 mod staged;
 mod transpose;
 pub mod voxel;
+mod window;
 pub mod zaxis;
 
 pub use config::{

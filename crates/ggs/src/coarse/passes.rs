@@ -8,10 +8,10 @@
 //! they equal.
 
 use super::correlator::{
-    as_intervals, ApproxBest, Backend, BestOffset, Candidates, Correlator, PassControl,
+    as_intervals, ApproxBest, Backend, BestOffset, Candidates, Correlator, PassControl, Rescored,
     RotatedSources, Scores, StageTimes,
 };
-use super::cpu::{CpuCorrelator, ExactKernels, Real, Workspace};
+use super::cpu::{CpuCorrelator, ExactKernels, KernelWindow, Real, Workspace};
 
 use super::geometry::Geometry;
 use super::sized::SizedPlans;
@@ -53,7 +53,9 @@ impl Backend for CpuBackend {
                 ExactKernels::new(&geo, kernel),
             ),
             Scores::Mixed => {
-                let exact = CpuCorrelator::<f64>::new(geo, kernel);
+                let window =
+                    KernelWindow::for_kernel(kernel.cells.len() as i64, kernel.occupied() as i64);
+                let exact = CpuCorrelator::<f64>::with_window(geo, kernel, window);
                 let approx = CpuCorrelator::<f32>::from_f64(&exact);
                 let kernels = ExactKernels::sparse_only(&geo, kernel);
                 CpuPlan::Mixed(exact, SizedPlans::new(approx, kernel.clone()), kernels)
@@ -109,48 +111,61 @@ impl Correlator for CpuPlan {
     }
 
     /// With a mixed plan, rotations whose candidates were kept are voxelized and scored at
-    /// those offsets ([`CpuCorrelator::exact_among`]); the others are correlated in f64.
+    /// those offsets ([`CpuCorrelator::exact_among`]); the others are correlated in f32 again
+    /// and counted at the offsets that could reach `at_least` ([`CpuCorrelator::exact_above`]);
+    /// those with too many such offsets are correlated in f64.
     fn exact_among(
         &self,
         ctl: &PassControl<'_>,
         src: &RotatedSources<'_>,
         indices: &[usize],
         candidates: &[Candidates],
-    ) -> Result<(Vec<BestOffset>, StageTimes)> {
+        at_least: f64,
+    ) -> Result<(Vec<Rescored>, StageTimes)> {
         let CpuPlan::Mixed(_, sized, _) = self else {
-            return self.exact(ctl, src, indices);
+            let (found, times) = self.exact(ctl, src, indices)?;
+            return Ok((found.into_iter().map(Rescored::Exact).collect(), times));
         };
         let (approx, kernel) = (sized.full(), sized.kernel());
         let (kept, again): (Vec<usize>, Vec<usize>) =
             (0..indices.len()).partition(|&i| candidates[i].offsets().is_some());
         let pick = |from: &[usize]| from.iter().map(|&i| indices[i]).collect::<Vec<_>>();
+        let grid = Buffers::GridOnly;
+        let (counted, mut times) =
+            run_pass(ctl, src, approx, &pick(&kept), grid, |c, ws, slot| {
+                let offsets = candidates[kept[slot]].offsets().expect("kept");
+                Rescored::Exact(c.exact_among(ws, kernel, offsets))
+            })?;
+        // Counting at candidates does no transform.
+        times.flops = 0.0;
+        let n_again = again.len();
+        let (above, above_times) = run_pass(ctl, src, approx, &pick(&again), Buffers::Full, {
+            |c, ws, _| c.exact_above(ws, kernel, at_least)
+        })?;
+        times.add(&above_times);
+        let mut out = vec![Rescored::TooMany; indices.len()];
+        for (i, r) in kept
+            .into_iter()
+            .zip(counted)
+            .chain(again.into_iter().zip(above))
+        {
+            out[i] = r;
+        }
+        let full: Vec<usize> = (0..indices.len())
+            .filter(|&i| out[i] == Rescored::TooMany)
+            .collect();
         tracing::debug!(
-            at_candidates = kept.len(),
-            in_f64 = again.len(),
+            at_candidates = indices.len() - n_again,
+            counted_above = n_again - full.len(),
+            in_f64 = full.len(),
             "exact re-scoring"
         );
-        let grid = Buffers::GridOnly;
-        let (sparse, mut times) = run_pass(ctl, src, approx, &pick(&kept), grid, |c, ws, slot| {
-            let offsets = candidates[kept[slot]].offsets().expect("kept");
-            c.exact_among(ws, kernel, offsets)
-        })?;
-        times.flops = 0.0;
-        let (full, full_times) = self.exact(ctl, src, &pick(&again))?;
+        let (exact, full_times) = self.exact(ctl, src, &pick(&full))?;
         times.add(&full_times);
-        let mut out = vec![None; indices.len()];
-        for (i, b) in kept
-            .into_iter()
-            .zip(sparse)
-            .chain(again.into_iter().zip(full))
-        {
-            out[i] = Some(b);
+        for (i, b) in full.into_iter().zip(exact) {
+            out[i] = Rescored::Exact(b);
         }
-        Ok((
-            out.into_iter()
-                .map(|b| b.expect("every rotation scored"))
-                .collect(),
-            times,
-        ))
+        Ok((out, times))
     }
 
     fn approx(

@@ -91,7 +91,8 @@ pub struct SearchStats {
     pub precision: Precision,
     /// Rotations scored at the voxel size (all of them when exhaustive).
     pub scored: usize,
-    /// Rotations re-scored in f64 because their f32 bound reached the best (mixed precision).
+    /// Rotations re-scored exactly because their f32 bound reached the best (mixed precision;
+    /// a rotation asked again under a lower floor counts again).
     pub rescored: usize,
     /// Coarse level of a coarse-to-fine search.
     pub coarse_level: Option<CoarseLevel>,

@@ -8,7 +8,8 @@
 //! makes (docs/method.md, "Reduced precision").
 
 use super::correlator::{
-    ApproxBest, BestOffset, Candidates, Correlator, PassControl, RotatedSources, StageTimes,
+    ApproxBest, BestOffset, Candidates, Correlator, PassControl, Rescored, RotatedSources,
+    StageTimes,
 };
 use crate::error::Result;
 use std::time::{Duration, Instant};
@@ -21,12 +22,14 @@ pub struct Tally {
     pub rescore_time: Duration,
 }
 
-/// Re-score the rotations `pending` exactly into `scores.exact`.
+/// Re-score the rotations `pending` exactly against the floor `at_least`: into
+/// `scores.exact`, or `scores.below` for those shown to stay below it.
 pub fn rescore_exact(
     corr: &dyn Correlator,
     ctl: &PassControl<'_>,
     src: &RotatedSources<'_>,
     pending: &[usize],
+    at_least: f64,
     scores: &mut LevelScores,
     tally: &mut Tally,
 ) -> Result<()> {
@@ -35,20 +38,31 @@ pub fn rescore_exact(
         .iter()
         .map(|&k| scores.approx[k].map_or(Candidates::NONE, |a| a.candidates))
         .collect();
-    let (found, st) = corr.exact_among(ctl, src, pending, &candidates)?;
+    let (found, st) = corr.exact_among(ctl, src, pending, &candidates, at_least)?;
     tally.times.add(&st);
-    for (&k, b) in pending.iter().zip(found) {
-        scores.exact[k] = Some(b);
+    for (&k, r) in pending.iter().zip(found) {
+        match r {
+            Rescored::Exact(b) => scores.exact[k] = Some(b),
+            Rescored::Below(m) => scores.below[k] = Some(m),
+            Rescored::TooMany => {
+                return Err(crate::error::GgsError::param(
+                    "rotations",
+                    "an exact re-scoring was left unsettled",
+                ))
+            }
+        }
     }
     tally.rescored += pending.len();
     tally.rescore_time += t.elapsed();
     Ok(())
 }
 
-/// Per-rotation scores of one resolution level: approximate, exact, or both.
+/// Per-rotation scores of one resolution level: approximate, exact, or both; and for a
+/// rotation re-scored against a floor it stayed below, the largest its exact best can be.
 pub struct LevelScores {
     pub approx: Vec<Option<ApproxBest>>,
     pub exact: Vec<Option<BestOffset>>,
+    pub below: Vec<Option<i64>>,
 }
 
 impl LevelScores {
@@ -56,7 +70,17 @@ impl LevelScores {
         LevelScores {
             approx: vec![None; n],
             exact: vec![None; n],
+            below: vec![None; n],
         }
+    }
+
+    /// The largest the exact best of unsettled rotation `k` can be.
+    fn upper(&self, k: usize) -> Option<f64> {
+        let a = self.approx[k]?;
+        Some(match self.below[k] {
+            Some(m) => a.upper().min(m as f64),
+            None => a.upper(),
+        })
     }
 
     fn scored(&self, k: usize) -> bool {
@@ -65,12 +89,13 @@ impl LevelScores {
 }
 
 /// The eligible rotation with the highest exact match score (ties to the lowest index),
-/// re-scoring in f64 (`rescore`) only the rotations whose approximate interval reaches it.
+/// re-scoring exactly (`rescore(pending, floor, scores)`) only the rotations whose
+/// approximate interval reaches the floor: each is settled or shown to stay below the floor.
 /// `None` when no scored rotation is eligible.
 pub fn exact_best(
     scores: &mut LevelScores,
     eligible: impl Fn(usize) -> bool,
-    mut rescore: impl FnMut(&[usize], &mut LevelScores) -> Result<()>,
+    mut rescore: impl FnMut(&[usize], f64, &mut LevelScores) -> Result<()>,
 ) -> Result<Option<usize>> {
     let n = scores.exact.len();
     let candidates: Vec<usize> = (0..n)
@@ -99,13 +124,13 @@ pub fn exact_best(
             .filter(|&k| scores.exact[k].is_none())
             .filter(|&k| {
                 // A NaN bound (never expected) counts as reaching: re-score it.
-                scores.approx[k].is_some_and(|a| a.upper() >= floor || a.upper().is_nan())
+                scores.upper(k).is_some_and(|u| u >= floor || u.is_nan())
             })
             .collect();
         if pending.is_empty() {
             return Ok(best.map(|(_, k)| k));
         }
-        rescore(&pending, scores)?;
+        rescore(&pending, floor, scores)?;
     }
 }
 
@@ -136,16 +161,49 @@ mod tests {
         eligible: impl Fn(usize) -> bool,
         truth: &[i64],
     ) -> (Option<usize>, Vec<usize>) {
+        best_against_floor(scores, eligible, truth, false)
+    }
+
+    /// [`best`], with a re-scoring that, when `floors`, only shows a rotation below the floor
+    /// to be so (as [`Rescored::Below`]).
+    fn best_against_floor(
+        scores: &mut LevelScores,
+        eligible: impl Fn(usize) -> bool,
+        truth: &[i64],
+        floors: bool,
+    ) -> (Option<usize>, Vec<usize>) {
         let mut asked = Vec::new();
-        let got = exact_best(scores, eligible, |pending, s| {
+        let got = exact_best(scores, eligible, |pending, floor, s| {
             for &k in pending {
-                s.exact[k] = exact(truth[k]);
+                if floors && (truth[k] as f64) < floor {
+                    s.below[k] = Some(floor.ceil() as i64 - 1);
+                } else {
+                    s.exact[k] = exact(truth[k]);
+                }
                 asked.push(k);
             }
             Ok(())
         })
         .unwrap();
         (got, asked)
+    }
+
+    #[test]
+    fn a_rotation_shown_below_the_floor_is_asked_again_only_under_a_lower_floor() {
+        // Rotation 0 is exact at 10. Rotation 1 might reach 12 but is truly 8: shown below
+        // 10, it is not exact, and the winner is 0. Then with 0 not eligible the floor drops
+        // to rotation 2's lower end (7.5) and rotation 1 is asked again: exact at 8, it wins.
+        let mut s = LevelScores::new(3);
+        s.exact[0] = exact(10);
+        s.approx[1] = approx(9.0, 3.0);
+        s.approx[2] = approx(8.0, 0.5);
+        let truth = [10, 8, 8];
+        let (got, asked) = best_against_floor(&mut s, |_| true, &truth, true);
+        assert_eq!((got, asked), (Some(0), vec![1]));
+        assert_eq!((s.exact[1], s.below[1]), (None, Some(9)));
+        let (got, mut asked) = best_against_floor(&mut s, |k| k != 0, &truth, true);
+        asked.sort();
+        assert_eq!((got, asked), (Some(1), vec![1, 2]));
     }
 
     #[test]

@@ -142,7 +142,7 @@ impl SizedPlans {
         }
         let made: Vec<CpuCorrelator<f32>> = pool.install(|| {
             make.into_par_iter()
-                .map(|g| CpuCorrelator::new(g, &self.kernel))
+                .map(|g| CpuCorrelator::with_window(g, &self.kernel, self.full.window()))
                 .collect()
         });
         extra.extend(made.into_iter().map(Arc::new));

@@ -4,8 +4,8 @@
 //! [`Search::complete`] scores what the whole search scores and returns what
 //! [`coarse_register_with`](super::coarse_register_with) returns, bit for bit: a rotation's
 //! score depends on nothing but the rotation, so the ones the first look scored keep theirs,
-//! and the picks are the exact best among the scored rotations whichever were re-scored in
-//! f64 on the way ([`super::selection::exact_best`]).
+//! and the picks are the exact best among the scored rotations whichever were re-scored
+//! exactly on the way ([`super::selection::exact_best`]).
 
 use super::config::{SearchConfig, SearchMode};
 use super::correlator::{Backend, PassControl};
