@@ -279,6 +279,13 @@ fn a_run_directory_of_another_configuration_is_refused() {
     let mut moved = config();
     moved.motion_seed = Some(3);
     assert!(run(&kitti_plan(&pairs, &moved), &out, |_, _, _| {}).is_err());
+    // The final refinement's resolution and the memory budget are settings of the run too.
+    let mut full_resolution = config();
+    full_resolution.pipeline.final_stage.cell_voxels = 0.0;
+    assert!(run(&kitti_plan(&pairs, &full_resolution), &out, |_, _, _| {}).is_err());
+    let mut budget = config();
+    budget.pipeline.search.max_memory = Some(1 << 40);
+    assert!(run(&kitti_plan(&pairs, &budget), &out, |_, _, _| {}).is_err());
     std::fs::remove_dir_all(&dir).unwrap();
 }
 

@@ -210,10 +210,12 @@ impl RunConfig {
                 "precision": p.search.precision,
                 "top_k": p.search.top_k,
                 "distinct_radius_deg": p.search.distinct_radius_deg,
+                "max_memory": p.search.max_memory,
             },
             "polish": p.polish,
             "verify": p.verify,
             "first_look": p.first_look,
+            "final_stage": p.final_stage,
             "refine": refine,
         })
     }

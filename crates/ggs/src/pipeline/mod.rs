@@ -172,7 +172,7 @@ impl std::str::FromStr for Preset {
 /// at steps below 1e-5 rad and 1e-5 source radii, the final pose lies within 0.055° and
 /// 0.075 mm of GICP's at full resolution run to its relative-change criterion, in a third of
 /// its time (docs/performance.md). The step tolerance alone changes the pose by ≤ 0.002°.
-/// Stopping at 1e-4 instead (the default since 2026-12-03) moves the pose by at most 0.005°
+/// Stopping at 1e-4 instead (the default) moves the pose by at most 0.005°
 /// and 0.014 mm more on the real bunny pairs (0.0008 voxel on the scenes) and saves 1–4
 /// iterations, 6 ms on the bunny pair (docs/pipeline.md, "The final refinement").
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
