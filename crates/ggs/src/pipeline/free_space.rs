@@ -91,12 +91,18 @@ fn diagonal(min: Point, max: Point) -> f64 {
 /// Whether `points` (in their file's frame) look like a panoramic scan taken from the origin
 /// (see the module documentation).
 pub fn origin_is_scanner(points: &[Point]) -> bool {
+    scan_median_range(points).is_some()
+}
+
+/// The median distance of `points` from the origin when they are a scan taken from it
+/// ([`origin_is_scanner`]), else `None`.
+pub fn scan_median_range(points: &[Point]) -> Option<f64> {
     if points.len() < 100 {
-        return false;
+        return None;
     }
     let (min, max) = bounds(points);
     if (0..3).any(|d| !(min[d] < 0.0 && max[d] > 0.0)) {
-        return false;
+        return None;
     }
     let diagonal = diagonal(min, max);
     let sectors = (360.0 / SECTOR_DEG) as usize;
@@ -108,7 +114,7 @@ pub fn origin_is_scanner(points: &[Point]) -> bool {
     let share = covered.iter().filter(|&&c| c).count() as f64 / sectors as f64;
     let mid = ranges.len() / 2;
     let median = *ranges.select_nth_unstable_by(mid, f64::total_cmp).1;
-    share >= MIN_AZIMUTH_SHARE && median <= MAX_MEDIAN_RANGE * diagonal
+    (share >= MIN_AZIMUTH_SHARE && median <= MAX_MEDIAN_RANGE * diagonal).then_some(median)
 }
 
 /// The smallest range seen in each direction bin of a scan taken from its origin.

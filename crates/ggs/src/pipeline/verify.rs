@@ -29,9 +29,13 @@
 //! The sums run over the source points `S` and the target points (each an evenly strided
 //! sample of at most [`SAMPLE_POINTS`] points of the full cloud); the nearest neighbours `q`
 //! are searched among every point of the other cloud (up to [`INDEX_POINTS`]).
-//! `D = max(distance_voxels · s, spacing_factor · ρ)`, with `s` the voxel size and `ρ` the target's median distance from a point to its
-//! nearest other point: a fraction of the voxel, so that a pose that is only roughly right
-//! scores low, but never below the point spacing, where every pose would score low. The
+//! `D = max(distance_voxels · s, spacing_factor · ρ, scan_distance_fraction · r)`, with `s`
+//! the voxel size, `ρ` the target's median distance from a point to its nearest other point
+//! and `r` the median range of a cloud taken as a scan (the larger of the two; 0 for no
+//! scan): a fraction of the voxel, so that a pose that is only roughly right scores low, but
+//! never below the point spacing, where every pose would score low, nor, on scans, below
+//! the scale at which a scene's surfaces agree (vegetation, range noise, things moved between
+//! scans), where a turn that lays ground on ground fits more points than the right pose. The
 //! correspondence distance of each ICP run is not used: it is chosen from the run's own
 //! start, so a wrong start gets a large one and a high fitness.
 //!
@@ -47,7 +51,7 @@
 //! ([`first_stage`]), so the pipeline runs it for every hypothesis side by side and takes the
 //! decisions ([`finish`]) in rank order, with the same outcome.
 
-use super::free_space::{origin_is_scanner, RangeImage};
+use super::free_space::{scan_median_range, RangeImage};
 use crate::cloud::{Cloud, Point};
 use crate::error::Result;
 use crate::refine::grid::RadiusSearch;
@@ -92,6 +96,10 @@ pub struct VerifyConfig {
     pub distance_voxels: f64,
     /// `D` is at least this many target point spacings.
     pub spacing_factor: f64,
+    /// `D` is at least this fraction of the median range of a cloud taken as a scan from
+    /// its origin (the larger of the two): a scene's surfaces are rough, noisy and partly
+    /// moved at that scale, and a smaller `D` rewards laying ground on ground.
+    pub scan_distance_fraction: f64,
     /// ICP of the verification runs on clouds thinned to cells of this many voxels.
     pub cell_voxels: f64,
     /// ICP iterations before a hypothesis is compared with the best so far.
@@ -163,6 +171,7 @@ impl Default for VerifyConfig {
             max_hypotheses: 32,
             distance_voxels: 0.2,
             spacing_factor: 1.5,
+            scan_distance_fraction: 0.15,
             cell_voxels: 0.5,
             check_iterations: 10,
             max_iterations: 30,
@@ -277,11 +286,19 @@ impl Verifier {
         spacing: f64,
         cfg: &VerifyConfig,
     ) -> Self {
-        let distance = (cfg.distance_voxels * voxel).max(cfg.spacing_factor * spacing);
         let (source_index, target_index) =
             (source.strided(INDEX_POINTS), target.strided(INDEX_POINTS));
         let (source_sample, target_sample) =
             (source.strided(SAMPLE_POINTS), target.strided(SAMPLE_POINTS));
+        let ranges = [
+            scan_median_range(&target_sample),
+            scan_median_range(&source_sample),
+        ];
+        let scan_floor =
+            (ranges.iter().flatten()).fold(0.0f64, |a, &r| a.max(cfg.scan_distance_fraction * r));
+        let distance = (cfg.distance_voxels * voxel)
+            .max(cfg.spacing_factor * spacing)
+            .max(scan_floor);
         let normals = (cfg.score == VerifyScore::Oriented).then(|| {
             let (si, ti) = (
                 crate::refine::neighbors::PointIndex::new(&source_index),
@@ -304,12 +321,9 @@ impl Verifier {
                 draw(n, n.div_ceil(k), &mut rng)
             })
         });
-        let scan = |sample: &[Point], index: &[Point]| {
-            origin_is_scanner(sample).then(|| RangeImage::new(index))
-        };
         let free_space = [
-            scan(&target_sample, &target_index),
-            scan(&source_sample, &source_index),
+            ranges[0].map(|_| RangeImage::new(&target_index)),
+            ranges[1].map(|_| RangeImage::new(&source_index)),
         ];
         Verifier {
             free_space,
@@ -663,6 +677,27 @@ mod tests {
         let expected = overlap_only.score - 10.0 * (v - 0.02);
         assert!((wrong.score - expected.max(0.0)).abs() < 1e-12, "{wrong:?}");
         assert!(wrong.score < 0.5 * right.score, "{wrong:?}");
+    }
+
+    #[test]
+    fn on_scans_d_is_at_least_a_fraction_of_their_median_range() {
+        let scan = yard();
+        let sample = scan.strided(SAMPLE_POINTS);
+        let r = crate::pipeline::free_space::scan_median_range(&sample).unwrap();
+        // The yard's median range is several metres: far above 0.2 voxel and the spacing.
+        assert!(r > 4.0, "{r}");
+        let v = Verifier::new(&scan, &scan, 0.5, 0.01, &VerifyConfig::default());
+        assert!(
+            (v.distance - 0.15 * r).abs() < 1e-12,
+            "{} against {r}",
+            v.distance
+        );
+        let off = VerifyConfig {
+            scan_distance_fraction: 0.0,
+            ..VerifyConfig::default()
+        };
+        let v = Verifier::new(&scan, &scan, 0.5, 0.01, &off);
+        assert!((v.distance - 0.1).abs() < 1e-12, "{}", v.distance);
     }
 
     #[test]
