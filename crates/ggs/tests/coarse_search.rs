@@ -195,6 +195,48 @@ fn bit_identical_for_1_2_and_8_threads() {
     }
 }
 
+/// With a least match fraction the hypotheses are those of the full list, cut after the
+/// runner-up at the first below that fraction of the winner's match score, and fewer
+/// rotations are re-scored exactly; the winner and the runner-up do not change.
+#[test]
+fn a_least_match_fraction_cuts_the_list_and_nothing_else() {
+    let dir = common::repo_root().join("tests/data");
+    let source = read_cloud(&dir.join("bun0.pcd"), None).unwrap().cloud;
+    let target = read_cloud(&dir.join("bun4.pcd"), None).unwrap().cloud;
+    let run = |fraction| {
+        let cfg = SearchConfig {
+            top_k: 12,
+            min_match_fraction: fraction,
+            ..SearchConfig::with_voxel(0.006)
+        };
+        coarse_register(&source, &target, limited15(), &cfg).unwrap()
+    };
+    let all = run(None);
+    assert_eq!(all.hypotheses.len(), 12);
+    let win = all.hypotheses[0].match_score as f64;
+    let cut = run(Some(0.5));
+    let kept = 2 + all.hypotheses[2..]
+        .iter()
+        .take_while(|h| h.match_score as f64 >= 0.5 * win)
+        .count();
+    assert!(
+        kept < 12,
+        "the bundled pair's list reaches below half the winner"
+    );
+    assert_eq!(cut.hypotheses.len(), kept);
+    for (a, b) in cut.hypotheses.iter().zip(&all.hypotheses) {
+        assert_eq!(
+            (a.rotation_index, a.offset, a.match_score),
+            (b.rotation_index, b.offset, b.match_score)
+        );
+    }
+    assert_eq!(
+        cut.runner_up.map(|h| h.rotation_index),
+        all.runner_up.map(|h| h.rotation_index)
+    );
+    assert!(cut.stats.rescored <= all.stats.rescored);
+}
+
 #[test]
 fn top_k_hypotheses_are_distinct_and_ordered() {
     let source = random_cloud(3, 300);

@@ -17,6 +17,12 @@ pub struct SearchConfig {
     pub threads: usize,
     /// Number of distinct hypotheses to return (≥ 1).
     pub top_k: usize,
+    /// Distinct hypotheses after the runner-up are returned only while their match score is
+    /// at least this fraction of a positive winner's (none after the runner-up when the
+    /// winner's is not positive); `None`: all `top_k`. A caller that uses no hypothesis below
+    /// that (the verification's `margin`) saves the exact re-scoring of the rotations that
+    /// could only rank there.
+    pub min_match_fraction: Option<f64>,
     /// Rotations closer than this (degrees, geodesic) to a better one are not distinct: they
     /// are skipped for `top_k` and for the ambiguity. Default: 2 × the set's step.
     pub distinct_radius_deg: Option<f64>,
@@ -143,6 +149,7 @@ impl std::fmt::Debug for SearchConfig {
             .field("voxel", &self.voxel)
             .field("threads", &self.threads)
             .field("top_k", &self.top_k)
+            .field("min_match_fraction", &self.min_match_fraction)
             .field("distinct_radius_deg", &self.distinct_radius_deg)
             .field("max_memory", &self.max_memory)
             .field("mode", &self.mode)
@@ -158,6 +165,7 @@ impl SearchConfig {
             voxel,
             threads: 0,
             top_k: 1,
+            min_match_fraction: None,
             distinct_radius_deg: None,
             max_memory: None,
             progress: None,

@@ -131,7 +131,7 @@ impl<'p> FineLevel<'p> {
             progress: None,
             ..*ctl
         };
-        self.exact_best(&quiet, |_| true, tally)?
+        self.exact_best(&quiet, |_| true, f64::NEG_INFINITY, tally)?
             .ok_or_else(|| GgsError::param("rotations", "no rotation was scored"))
     }
 
@@ -209,11 +209,13 @@ impl<'p> FineLevel<'p> {
         Ok(())
     }
 
-    /// The best eligible scored rotation by exact score ([`exact_best`]).
+    /// The best eligible scored rotation by exact score, if it reaches `at_least`
+    /// ([`exact_best`]).
     fn exact_best(
         &mut self,
         ctl: &PassControl<'_>,
         eligible: impl Fn(usize) -> bool,
+        at_least: f64,
         tally: &mut Tally,
     ) -> Result<Option<usize>> {
         let corr = self
@@ -221,13 +223,14 @@ impl<'p> FineLevel<'p> {
             .as_deref()
             .ok_or_else(|| GgsError::param("rotations", "no rotation was scored"))?;
         let src = self.prep.sources(&self.boxes);
-        exact_best(&mut self.scores, eligible, |p, floor, sc| {
+        exact_best(&mut self.scores, eligible, at_least, |p, floor, sc| {
             rescore_exact(corr, ctl, &src, p, floor, sc, tally)
         })
     }
 
     /// The winner and the best rotations more than the distinct radius from every better
-    /// pick, up to `top_k` (and at least 2, for the runner-up).
+    /// pick, up to `top_k` (and at least 2, for the runner-up), those after the runner-up
+    /// only while they reach [`SearchConfig::min_match_fraction`] of the winner.
     pub(super) fn distinct(
         &mut self,
         ctl: &PassControl<'_>,
@@ -239,13 +242,26 @@ impl<'p> FineLevel<'p> {
         let radius = cfg.distinct_radius_deg.unwrap_or(2.0 * set.step_deg);
         let mut chosen = vec![winner];
         let within = WithinDeg::new(radius);
+        let win = self.scores.exact[winner].map_or(0, |b| b.match_score);
+        let least = cfg.min_match_fraction.map_or(f64::NEG_INFINITY, |f| {
+            if win > 0 {
+                f * win as f64
+            } else {
+                f64::INFINITY
+            }
+        });
         while chosen.len() < cfg.top_k.max(2) {
             let far = |k: usize| {
                 chosen
                     .iter()
                     .all(|&c| !within.holds(&set.matrices[c], &set.matrices[k]))
             };
-            match self.exact_best(ctl, far, tally)? {
+            let at_least = if chosen.len() < 2 {
+                f64::NEG_INFINITY
+            } else {
+                least
+            };
+            match self.exact_best(ctl, far, at_least, tally)? {
                 Some(k) => chosen.push(k),
                 None => break,
             }

@@ -91,10 +91,12 @@ impl LevelScores {
 /// The eligible rotation with the highest exact match score (ties to the lowest index),
 /// re-scoring exactly (`rescore(pending, floor, scores)`) only the rotations whose
 /// approximate interval reaches the floor: each is settled or shown to stay below the floor.
-/// `None` when no scored rotation is eligible.
+/// `None` when no scored rotation is eligible, or none reaches `at_least` (the floor starts
+/// there, so a rotation that could only score below it is never re-scored).
 pub fn exact_best(
     scores: &mut LevelScores,
     eligible: impl Fn(usize) -> bool,
+    at_least: f64,
     mut rescore: impl FnMut(&[usize], f64, &mut LevelScores) -> Result<()>,
 ) -> Result<Option<usize>> {
     let n = scores.exact.len();
@@ -103,7 +105,7 @@ pub fn exact_best(
         .collect();
     loop {
         let mut best: Option<(i64, usize)> = None;
-        let mut floor = f64::NEG_INFINITY;
+        let mut floor = at_least;
         for &k in &candidates {
             match (&scores.exact[k], &scores.approx[k]) {
                 (Some(e), _) => {
@@ -128,7 +130,7 @@ pub fn exact_best(
             })
             .collect();
         if pending.is_empty() {
-            return Ok(best.map(|(_, k)| k));
+            return Ok(best.filter(|&(m, _)| m as f64 >= at_least).map(|(_, k)| k));
         }
         rescore(&pending, floor, scores)?;
     }
@@ -173,7 +175,7 @@ mod tests {
         floors: bool,
     ) -> (Option<usize>, Vec<usize>) {
         let mut asked = Vec::new();
-        let got = exact_best(scores, eligible, |pending, floor, s| {
+        let got = exact_best(scores, eligible, f64::NEG_INFINITY, |pending, floor, s| {
             for &k in pending {
                 if floors && (truth[k] as f64) < floor {
                     s.below[k] = Some(floor.ceil() as i64 - 1);
@@ -186,6 +188,37 @@ mod tests {
         })
         .unwrap();
         (got, asked)
+    }
+
+    #[test]
+    fn below_the_least_score_nothing_is_rescored_or_returned() {
+        // Rotation 0 is exact at 10, rotation 1 could reach 12, rotation 2 only 9.5.
+        let mut s = LevelScores::new(3);
+        s.exact[0] = exact(10);
+        s.approx[1] = approx(11.0, 1.0);
+        s.approx[2] = approx(9.0, 0.5);
+        let mut asked = Vec::new();
+        let got = exact_best(
+            &mut s,
+            |k| k != 0,
+            10.0,
+            |pending, _, sc| {
+                for &k in pending {
+                    sc.exact[k] = exact(9);
+                }
+                asked.extend_from_slice(pending);
+                Ok(())
+            },
+        )
+        .unwrap();
+        // Rotation 1 is asked (truly 9); rotation 2 cannot reach 10; so none is returned.
+        assert_eq!((got, asked), (None, vec![1]));
+        let mut s = LevelScores::new(2);
+        s.exact = vec![exact(7), exact(12)];
+        let got = exact_best(&mut s, |_| true, 13.0, |_, _, _| Ok(())).unwrap();
+        assert_eq!(got, None, "the best, 12, is below 13");
+        let got = exact_best(&mut s, |_| true, 12.0, |_, _, _| Ok(())).unwrap();
+        assert_eq!(got, Some(1));
     }
 
     #[test]

@@ -40,10 +40,10 @@
 //! (the bunny pair's second hypothesis reaches the right pose within its 10 iterations
 //! before the check on cells of one voxel, and scores 0.22 at the check on cells of half a
 //! voxel), so a competitor is, if anything, more visible. Measured on every benchmark of the
-//! project (docs/performance.md, "Screening the alternatives"): the first look settled the
-//! same pairs as with the alternatives verified on the verification's own cells, with the
-//! same transform but for 10 pairs whose chosen pose was itself an alternative (within
-//! 0.0006°), at 11 % fewer instructions on the bunny pair. The screening's ICP runs are not
+//! project (docs/notes/performance-history.md, "Screening the first look's alternatives"):
+//! the first look settled the same pairs as with the alternatives verified on the
+//! verification's own cells, with the same transform but for 10 pairs whose chosen pose was
+//! itself an alternative (within 0.0006°), at 11 % fewer instructions on the bunny pair. The screening's ICP runs are not
 //! reused by the whole verification (its cells differ), so a pair the first look declines
 //! after screening pays for the screening: a quarter of what the alternatives cost before.
 //!

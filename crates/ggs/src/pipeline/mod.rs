@@ -347,6 +347,8 @@ fn search_config(cfg: &RegistrationConfig, voxel: f64) -> SearchConfig {
     search.threads = cfg.threads;
     if let Some(v) = &cfg.verify {
         search.top_k = search.top_k.max(v.max_hypotheses);
+        // The verification takes no hypothesis below `margin` × the winner's match score.
+        search.min_match_fraction = Some(v.margin);
     }
     search
 }
