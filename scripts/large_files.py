@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Read throughput and memory of ggs on large files (issue 6: 50 million points).
+"""Read throughput and memory of ggs on large files (50 million points).
 
 Writes a synthetic cloud of N points (default 50 million; a noisy sphere shell, float32) as
 binary PLY (x y z float32 + an extra uchar property, as scanners write), binary PCD

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""A large-cloud registration benchmark anyone can rerun (issue 22).
+"""A large-cloud registration benchmark anyone can rerun.
 
 Densifies lidar_koide of ../shared/data by jittered copies to N points per cloud (default
 4.8 million; seeded), moves the source by a known 31° motion, writes both as KITTI .bin

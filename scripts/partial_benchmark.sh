@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Generate the human partial-view benchmark (issue 5) and register it with ggs bench.
+# Generate the human partial-view benchmark and register it with ggs bench.
 #
 #   scripts/partial_benchmark.sh [PRESET [OUT_DIR [MIN_RECALL]]]
 #

@@ -1,4 +1,4 @@
-"""Calling overhead of the Python package against the CLI (issue 7).
+"""Calling overhead of the Python package against the CLI.
 
     python scripts/python_overhead.py [RUNS]
 
