@@ -107,7 +107,7 @@ fn coarse_search_on_real_pairs() {
             )
             .unwrap();
             let secs = t0.elapsed().as_secs_f64();
-            // The coarse-to-fine search picks what the exhaustive one picks (issue 8).
+            // The coarse-to-fine search picks what the exhaustive one picks.
             let fast = coarse_register(
                 &source,
                 &target,

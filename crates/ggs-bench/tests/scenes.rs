@@ -25,6 +25,14 @@ fn scene_pairs() -> Option<Vec<Pair>> {
     Some(read_manifest(&shared.join("data/scenes/pairs.tsv")).unwrap())
 }
 
+/// The scene pair `name` with its source and target clouds, if `shared/` is there.
+fn scene_pair(name: &str) -> Option<(Pair, ggs::Cloud, ggs::Cloud)> {
+    let pair = scene_pairs()?.into_iter().find(|p| p.name == name).unwrap();
+    let source = read_cloud(&pair.source, None).unwrap().cloud;
+    let target = read_cloud(&pair.target, None).unwrap().cloud;
+    Some((pair, source, target))
+}
+
 #[test]
 fn the_defaults_solve_the_scene_pairs() {
     let Some(pairs) = scene_pairs() else {
@@ -68,12 +76,9 @@ fn the_defaults_solve_the_scene_pairs() {
 
 #[test]
 fn without_free_space_the_overlap_picks_a_turn_and_free_space_flags_it() {
-    let Some(pairs) = scene_pairs() else {
+    let Some((pair, source, target)) = scene_pair("balm_73_46") else {
         return;
     };
-    let pair = pairs.iter().find(|p| p.name == "balm_73_46").unwrap();
-    let source = read_cloud(&pair.source, None).unwrap().cloud;
-    let target = read_cloud(&pair.target, None).unwrap().cloud;
     let blind = RegistrationConfig {
         verify: Some(VerifyConfig {
             free_space_weight: 0.0,
@@ -112,12 +117,9 @@ fn without_free_space_the_overlap_picks_a_turn_and_free_space_flags_it() {
 /// the median range (1.1 m here), and the right pose wins.
 #[test]
 fn at_the_pairs_voxel_the_right_pose_beats_the_turn() {
-    let Some(pairs) = scene_pairs() else {
+    let Some((pair, source, target)) = scene_pair("balm_163_138") else {
         return;
     };
-    let pair = pairs.iter().find(|p| p.name == "balm_163_138").unwrap();
-    let source = read_cloud(&pair.source, None).unwrap().cloud;
-    let target = read_cloud(&pair.target, None).unwrap().cloud;
     let at_half_metre = RegistrationConfig {
         voxel: ggs::pipeline::VoxelSize::Fixed(0.5),
         ..RegistrationConfig::default()

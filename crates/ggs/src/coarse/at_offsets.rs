@@ -116,15 +116,6 @@ mod tests {
     use super::*;
     use crate::coarse::cpu::{brute_force_scores, Geometry, KernelWindow};
 
-    fn random_occupancy(dims: [usize; 3], p: f64, next: &mut dyn FnMut() -> f64) -> Occupancy {
-        Occupancy {
-            dims,
-            cells: (0..dims.iter().product::<usize>())
-                .map(|_| next() < p)
-                .collect(),
-        }
-    }
-
     /// Against every floor, `exact_above` gives the exact best (value and first offset) when
     /// it reaches the floor, and otherwise a true upper bound below the floor; with either
     /// window, on dense and sparse grids.
@@ -135,8 +126,8 @@ mod tests {
         for case in 0..16 {
             let n = 6 + case;
             let p = if case % 2 == 0 { 0.3 } else { 0.03 };
-            let k = random_occupancy([n + 3, n, n + 1], p, &mut next);
-            let src = random_occupancy([n, n - 2, n + 2], 0.2, &mut next);
+            let k = Occupancy::random([n + 3, n, n + 1], p, &mut next);
+            let src = Occupancy::random([n, n - 2, n + 2], 0.2, &mut next);
             let scores = brute_force_scores(&src, &k);
             let max = *scores.iter().max().unwrap();
             let first = scores.iter().position(|&m| m == max).unwrap();

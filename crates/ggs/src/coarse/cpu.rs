@@ -966,14 +966,8 @@ mod tests {
         }
     }
 
-    /// A grid of `dims` whose cells are occupied with probability `p`.
     fn random_occupancy(dims: [usize; 3], p: f64, next: &mut dyn FnMut() -> f64) -> Occupancy {
-        Occupancy {
-            dims,
-            cells: (0..dims.iter().product::<usize>())
-                .map(|_| next() < p)
-                .collect(),
-        }
+        Occupancy::random(dims, p, next)
     }
 
     fn fft_scores(source: &Occupancy, kernel: &Occupancy) -> Vec<i64> {

@@ -100,6 +100,18 @@ impl Occupancy {
     pub fn get(&self, i: usize, j: usize, k: usize) -> bool {
         self.cells[(i * self.dims[1] + j) * self.dims[2] + k]
     }
+
+    /// A grid of `dims` whose cells are occupied with probability `p` (`next`: uniform
+    /// draws in [0, 1)). For tests.
+    #[cfg(test)]
+    pub(crate) fn random(dims: [usize; 3], p: f64, next: &mut dyn FnMut() -> f64) -> Self {
+        Occupancy {
+            dims,
+            cells: (0..dims.iter().product::<usize>())
+                .map(|_| next() < p)
+                .collect(),
+        }
+    }
 }
 
 #[cfg(test)]

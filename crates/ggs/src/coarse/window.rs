@@ -119,24 +119,13 @@ mod tests {
 
     #[test]
     fn the_window_is_counted_where_it_halves_the_peak() {
-        // A scene: 1 % of the window occupied.
-        assert_eq!(
-            KernelWindow::for_kernel(100_000, 1_000),
-            KernelWindow::Counted
-        );
-        // An object filling a sixth of its box: the window inside cancels the DC.
-        assert_eq!(
-            KernelWindow::for_kernel(6_000, 1_000),
-            KernelWindow::InSpectrum
-        );
-        assert_eq!(
-            KernelWindow::for_kernel(18_000, 1_000),
-            KernelWindow::Counted
-        );
-        assert_eq!(
-            KernelWindow::for_kernel(17_999, 1_000),
-            KernelWindow::InSpectrum
-        );
+        use KernelWindow::{Counted, InSpectrum};
+        // A scene (1 % of the window occupied); an object filling a sixth of its box, where
+        // the window inside cancels the DC; and both sides of `12·n_k = |K| − 6·n_k`.
+        for (cells, want) in [(100_000, Counted), (6_000, InSpectrum), (18_000, Counted)] {
+            assert_eq!(KernelWindow::for_kernel(cells, 1_000), want, "{cells}");
+        }
+        assert_eq!(KernelWindow::for_kernel(17_999, 1_000), InSpectrum);
     }
 
     #[test]
