@@ -110,6 +110,11 @@ def test_nan_rows_and_bad_options():
     assert e.value.filename == "/nonexistent/cloud.ply" and e.value.errno == 2
     with pytest.raises(ValueError, match="threads"):
         ggs.register(a, a, voxel=0.1, threads=-1)
+    # The verification's settings are checked by the core, as for the CLI's flags.
+    with pytest.raises(ValueError, match=r"margin: must be in \[0, 1\], got 3"):
+        ggs.register(a, a, voxel=0.1, margin=3.0)
+    with pytest.raises(ValueError, match="max_hypotheses: must be at least 1"):
+        ggs.register(a, a, voxel=0.1, max_hypotheses=0)
     with pytest.raises(ValueError, match="kernel"):
         ggs.register(a, a, voxel=0.1, kernel="huber:-1")
     with pytest.raises(ValueError, match="memory"):

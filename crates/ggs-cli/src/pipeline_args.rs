@@ -80,17 +80,13 @@ impl PipelineArgs {
         }
         if let Some(v) = &mut cfg.verify {
             if let Some(n) = self.max_hypotheses {
-                if n == 0 {
-                    bail!("--max-hypotheses must be at least 1");
-                }
                 v.max_hypotheses = n;
             }
             if let Some(m) = self.margin {
-                if !(m.is_finite() && (0.0..=1.0).contains(&m)) {
-                    bail!("--margin must be in [0, 1], got {m}");
-                }
                 v.margin = m;
             }
+            // The ranges are the core's ([`VerifyConfig::validate`]).
+            v.validate().context("--max-hypotheses / --margin")?;
             if let Some(sc) = &self.verify_score {
                 v.score = sc.parse().context("--verify-score")?;
             }

@@ -291,6 +291,21 @@ fn the_paper_preset_is_the_published_configuration() {
     // The paper's answer on the bundled pair is right too.
     let m: Vec<f64> = json_matrix(&j["transform"]);
     assert!(rre(&m, &ground_truth()) < 1.0);
+    // The verification's settings out of range are refused by the core's one rule, naming
+    // the flag and the setting.
+    for (flag, value, setting) in [
+        ("--margin", "3", "margin: must be in [0, 1], got 3"),
+        (
+            "--max-hypotheses",
+            "0",
+            "max_hypotheses: must be at least 1",
+        ),
+    ] {
+        let (src, tgt) = (data("bun0.pcd"), data("bun4.pcd"));
+        let args = ["register", s(&src), s(&tgt), flag, value];
+        assert_fails(&args, setting);
+        assert_fails(&args, flag);
+    }
     // Flags that need verification are refused with the paper preset.
     assert_fails(
         &[

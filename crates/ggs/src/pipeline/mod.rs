@@ -383,6 +383,9 @@ fn register_in_pool(
     cfg: &RegistrationConfig,
 ) -> Result<Registration> {
     let t0 = Instant::now();
+    if let Some(v) = &cfg.verify {
+        v.validate()?;
+    }
     source.ensure_not_empty("source")?;
     target.ensure_not_empty("target")?;
     let refine_cfg = cfg.refine.map(|r| RefineConfig {

@@ -53,7 +53,7 @@
 
 use super::free_space::{scan_median_range, RangeImage};
 use crate::cloud::{Cloud, Point};
-use crate::error::Result;
+use crate::error::{GgsError, Result};
 use crate::refine::grid::RadiusSearch;
 use crate::refine::{refine_prepared_pose, PreparedPair, RefineConfig, RefinedPose};
 use crate::transform::Rigid;
@@ -184,6 +184,49 @@ impl Default for VerifyConfig {
             free_space_tolerance: 0.02,
             free_space_margin_voxels: 1.0,
         }
+    }
+}
+
+impl VerifyConfig {
+    /// Every setting in its range, else an error that names it: the one check every front
+    /// end (the CLI, Python, a library caller) gets from [`super::register`].
+    pub fn validate(&self) -> Result<()> {
+        let fraction = |name: &'static str, v: f64| {
+            if v.is_finite() && (0.0..=1.0).contains(&v) {
+                Ok(())
+            } else {
+                Err(GgsError::param(name, format!("must be in [0, 1], got {v}")))
+            }
+        };
+        let non_negative = |name: &'static str, v: f64| {
+            if v.is_finite() && v >= 0.0 {
+                Ok(())
+            } else {
+                Err(GgsError::param(
+                    name,
+                    format!("must be a number ≥ 0, got {v}"),
+                ))
+            }
+        };
+        if self.max_hypotheses == 0 {
+            return Err(GgsError::param("max_hypotheses", "must be at least 1"));
+        }
+        fraction("margin", self.margin)?;
+        fraction("reject_ratio", self.reject_ratio)?;
+        fraction("ambiguous_ratio", self.ambiguous_ratio)?;
+        fraction("free_space_tolerance", self.free_space_tolerance)?;
+        for (name, v) in [
+            ("distance_voxels", self.distance_voxels),
+            ("spacing_factor", self.spacing_factor),
+            ("scan_distance_fraction", self.scan_distance_fraction),
+            ("cell_voxels", self.cell_voxels),
+            ("fine_cell_voxels", self.fine_cell_voxels),
+            ("free_space_weight", self.free_space_weight),
+            ("free_space_margin_voxels", self.free_space_margin_voxels),
+        ] {
+            non_negative(name, v)?;
+        }
+        Ok(())
     }
 }
 
@@ -677,6 +720,54 @@ mod tests {
         let expected = overlap_only.score - 10.0 * (v - 0.02);
         assert!((wrong.score - expected.max(0.0)).abs() < 1e-12, "{wrong:?}");
         assert!(wrong.score < 0.5 * right.score, "{wrong:?}");
+    }
+
+    #[test]
+    fn every_setting_out_of_range_is_refused_by_name() {
+        assert!(VerifyConfig::default().validate().is_ok());
+        let d = VerifyConfig::default;
+        let bad: [(VerifyConfig, &str); 6] = [
+            (VerifyConfig { margin: 3.0, ..d() }, "margin"),
+            (
+                VerifyConfig {
+                    margin: f64::NAN,
+                    ..d()
+                },
+                "margin",
+            ),
+            (
+                VerifyConfig {
+                    max_hypotheses: 0,
+                    ..d()
+                },
+                "max_hypotheses",
+            ),
+            (
+                VerifyConfig {
+                    reject_ratio: -0.1,
+                    ..d()
+                },
+                "reject_ratio",
+            ),
+            (
+                VerifyConfig {
+                    scan_distance_fraction: -1.0,
+                    ..d()
+                },
+                "scan_distance_fraction",
+            ),
+            (
+                VerifyConfig {
+                    free_space_weight: f64::INFINITY,
+                    ..d()
+                },
+                "free_space_weight",
+            ),
+        ];
+        for (cfg, name) in bad {
+            let e = cfg.validate().unwrap_err().to_string();
+            assert!(e.contains(&format!("invalid parameter {name}:")), "{e}");
+        }
     }
 
     #[test]
