@@ -303,8 +303,10 @@ def native_options(
         matrices = np.ascontiguousarray(rotations, dtype=np.float64)
     if top_k is not None and top_k < 1:
         raise ValueError("top_k must be at least 1")
-    if max_hypotheses is not None and max_hypotheses < 1:
-        raise ValueError("max_hypotheses must be at least 1")
+    if max_hypotheses is not None and max_hypotheses < 0:
+        # A negative count cannot cross into the engine's unsigned field; 0 reaches the
+        # engine, whose check (the CLI's too) refuses it with the same words.
+        raise ValueError("invalid parameter max_hypotheses: must be at least 1")
     options = {
         "preset": preset,
         "rotations": name,

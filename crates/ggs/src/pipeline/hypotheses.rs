@@ -560,8 +560,8 @@ fn best_scoring(out: &[VerifiedHypothesis], eligible: impl Fn(usize) -> bool) ->
 /// contender again on clouds thinned to the finer cells of `fine_cell_voxels` (built only
 /// then, `finer`) for `fine_iterations`, and re-scores it: on the coarser cells a right pose
 /// of a small overlap stops short (too few points where the clouds overlap) and loses to a
-/// loose look-alike (docs/pipeline.md, "Settling contested poses"). A clear pair costs
-/// nothing more.
+/// loose look-alike (docs/pipeline.md, "Coarse-level hypotheses and contested poses"). A
+/// clear pair costs nothing more.
 fn settle_contested(
     out: &mut [VerifiedHypothesis],
     verifier: &verify::Verifier,
