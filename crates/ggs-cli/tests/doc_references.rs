@@ -40,7 +40,8 @@ fn joined(text: &str) -> String {
     out
 }
 
-/// `(file, heading)` for every `X.md, "Heading"`, `X.md ("Heading"` or `X.md), "Heading"`.
+/// `(file, heading)` for every Markdown file name followed by a quoted heading: after `, `,
+/// ` (` or `), `.
 fn citations(text: &str) -> Vec<(String, String)> {
     let mut out = Vec::new();
     let path_char = |c: char| c.is_ascii_alphanumeric() || "_./-".contains(c);
