@@ -368,7 +368,16 @@ fn kernel_spectrum(geo: Geometry, kernel: &Occupancy, window: KernelWindow) -> (
     let peak = peak_sq.sqrt() * (1.0 + 4.0 * f64::EPSILON);
     let scale = 1.0 / (lx * ly * lz) as f64;
     me.kernel = Vec::new();
-    (ws.grid.iter().map(|c| c.conj() * scale).collect(), peak)
+    // In place: the grid becomes the spectrum (no second grid-sized buffer at the peak).
+    for c in ws.grid.iter_mut() {
+        *c = c.conj() * scale;
+    }
+    (std::mem::take(&mut ws.grid), peak)
+}
+
+/// `v` as `T` (a spectrum is finite).
+fn cast_finite<T: Real>(v: f64) -> T {
+    T::from_f64(v).expect("finite spectrum")
 }
 
 impl<T: Real> CpuCorrelator<T> {
@@ -385,11 +394,14 @@ impl<T: Real> CpuCorrelator<T> {
         let mut me = Self::plan(geo);
         let (spectrum, peak) = kernel_spectrum(geo, kernel, window);
         me.window = window;
-        let cast = |v: f64| T::from_f64(v).expect("finite spectrum");
-        me.kernel = spectrum
-            .iter()
-            .map(|c| Complex::new(cast(c.re), cast(c.im)))
-            .collect();
+        let cast = |c: C64| Complex::new(cast_finite::<T>(c.re), cast_finite::<T>(c.im));
+        me.kernel = if std::mem::size_of::<T>() == std::mem::size_of::<f64>() {
+            // The same size (f64): mapped in place, no second spectrum at the peak.
+            spectrum.into_iter().map(cast).collect()
+        } else {
+            // Smaller: a buffer of its own size (an in-place collect would keep the f64 one).
+            spectrum.iter().map(|&c| cast(c)).collect()
+        };
         me.kernel_peak = peak;
         me.kernel_occupied = kernel.occupied() as i64;
         me.kernel_cells = kernel.cells.len() as i64;
@@ -1207,17 +1219,24 @@ mod tests {
     fn from_f64_equals_a_fresh_correlator() {
         let k = occupancy([5, 4, 6], &[true, false, false, true, false]);
         let geo = Geometry::new(k.dims, [7, 6, 6]);
-        let exact = CpuCorrelator::<f64>::new(geo, &k);
-        let (a, b) = (
-            CpuCorrelator::<f32>::new(geo, &k),
-            CpuCorrelator::<f32>::from_f64(&exact),
-        );
-        assert_eq!(a.kernel, b.kernel);
-        assert_eq!(a.kernel_peak, b.kernel_peak);
-        assert_eq!(
-            (a.kernel_cells, a.kernel_occupied),
-            (b.kernel_cells, b.kernel_occupied)
-        );
+        for w in [KernelWindow::InSpectrum, KernelWindow::Counted] {
+            let exact = CpuCorrelator::<f64>::with_window(geo, &k, w);
+            let (a, b) = (
+                CpuCorrelator::<f32>::with_window(geo, &k, w),
+                CpuCorrelator::<f32>::from_f64(&exact),
+            );
+            assert_eq!(a.kernel, b.kernel);
+            assert_eq!((a.kernel_peak, a.window), (b.kernel_peak, b.window));
+            assert_eq!(
+                (a.kernel_cells, a.kernel_occupied),
+                (b.kernel_cells, b.kernel_occupied)
+            );
+            // The f64 spectrum, mapped in place, is the f32 one before rounding.
+            let rounded: Vec<Complex<f32>> = (exact.kernel.iter())
+                .map(|c| Complex::new(c.re as f32, c.im as f32))
+                .collect();
+            assert_eq!(rounded, a.kernel);
+        }
     }
 
     #[test]
