@@ -7,11 +7,12 @@
 //! and a fixed-distance score, and refines the best by generalized ICP.
 //!
 //! The pipeline, one module per stage:
-//! [`io`] → [`cloud`] → [`voxel`] → [`rotations`] → [`correlate`] → [`search`] → [`refine`],
-//! composed by [`pipeline`] (which every front end calls), with [`metrics`] for evaluation.
+//! [`io`] → [`cloud`] → [`rotations`] → [`coarse`] (voxelization, FFT correlation, the
+//! search) → [`pipeline`] (verification of the hypotheses) → [`refine`], composed by
+//! [`register`] (which every front end calls), with [`metrics`] for evaluation.
 //!
 //! ```no_run
-//! use ggs::{io, pipeline::{register, RegistrationConfig, VoxelSize}};
+//! use ggs::{io, pipeline::VoxelSize, register, RegistrationConfig};
 //! let source = io::read_cloud("source.ply".as_ref(), None)?.cloud;
 //! let target = io::read_cloud("target.ply".as_ref(), None)?.cloud;
 //! let cfg = RegistrationConfig { voxel: VoxelSize::Fixed(0.005), ..RegistrationConfig::default() };
@@ -50,36 +51,5 @@ pub mod test_rng;
 
 pub use cloud::{Cloud, Point};
 pub use error::{GgsError, Location, Result};
+pub use pipeline::{register, Registration, RegistrationConfig};
 pub use transform::Rigid;
-
-/// The coarse search's former path.
-#[deprecated(since = "0.2.0", note = "the coarse search is `ggs::coarse`")]
-pub mod search {
-    pub use crate::coarse::*;
-}
-
-/// The CPU correlator's former path.
-#[deprecated(
-    since = "0.2.0",
-    note = "use `ggs::coarse::cpu` (and the `Correlator` trait)"
-)]
-pub mod correlate {
-    pub use crate::coarse::correlator::{ApproxBest, BestOffset};
-    pub use crate::coarse::cpu::*;
-}
-
-/// Voxelization's former path.
-#[deprecated(
-    since = "0.2.0",
-    note = "use `ggs::coarse::voxel` (thinning: `ggs::thin`)"
-)]
-pub mod voxel {
-    pub use crate::coarse::voxel::*;
-    pub use crate::thin::cell_centroids;
-}
-
-/// The rotated source's former path.
-#[deprecated(since = "0.2.0", note = "use `ggs::coarse::rotated`")]
-pub mod rotated {
-    pub use crate::coarse::rotated::*;
-}
