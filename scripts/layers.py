@@ -4,8 +4,9 @@
     python3 scripts/layers.py            # report
     python3 scripts/layers.py --check    # exit 1 on an import loop or a wrong-way import
 
-A Rust file imports another when it names it by a `crate::` path (in a `use` or inline) or,
-from another crate of the workspace, by `ggs::`. Modules are files: `src/a/b.rs` and
+A Rust file imports another when it names it by a `crate::`, `super::` or `self::` path (in a
+`use` or inline), uses a child module it declares, or, from another crate of the workspace,
+names it by `ggs::`. Modules are files: `src/a/b.rs` and
 `src/a/b/mod.rs` are `a::b`. Test modules (`#[cfg(test)] mod tests` and `tests/`) are left
 out: tests may reach anywhere. A loop is a strongly connected set of files or of top-level
 modules. The layers (LAYERS below) are the architecture section of the README: a module may
@@ -29,6 +30,7 @@ LAYERS = [
     ["coarse", "refine"],
     ["metrics", "render"],
     ["pipeline"],
+    ["settings"],
     ["html"],
     # the benchmark crate (ggs-bench) sits above the whole core crate
     ["bench::"],
@@ -47,7 +49,7 @@ def strip_tests(text: str) -> str:
     """Drops `#[cfg(test)] mod … { … }` blocks and comments."""
     text = re.sub(r"//[^\n]*", "", text)
     out, i = [], 0
-    for m in re.finditer(r"#\[cfg\(test\)\]\s*(pub(\(crate\))?\s+)?mod\s+\w+\s*\{", text):
+    for m in re.finditer(r"#\[cfg\(test\)\]\s*(pub(\([\w:]+\))?\s+)?mod\s+\w+\s*\{", text):
         if m.start() < i:
             continue
         out.append(text[i:m.start()])
@@ -80,8 +82,28 @@ def use_paths(text: str, root: str) -> list:
             if item:
                 found.append(prefix + re.split(r"[\s{]", item)[0].rstrip(":"))
     for m in re.finditer(rf"\b{root}::((?:\w+)(?:::\w+)*)", text):
-        found.append(m.group(1))
+        if not text.startswith("::{", m.end()):  # a group's prefix: its items count
+            found.append(m.group(1))
     return found
+
+
+def absolute(text: str, mod: str) -> str:
+    """`text` with its `super::` and `self::` paths written from `crate::` (in the file of
+    module `mod`: `super::` is the module's parent, also in a `mod.rs`), and a bare `child::`
+    path of a `mod child;` it declares written as `crate::mod::child::`."""
+    own = mod.split("::") if mod else []
+
+    def up(m: re.Match) -> str:
+        base = own[: max(len(own) - m.group(0).count("super::"), 0)]
+        return "crate::" + "".join(b + "::" for b in base)
+
+    text = re.sub(r"\b(?:super::)+", up, text)
+    text = re.sub(r"\bself::", "crate::" + "".join(o + "::" for o in own), text)
+    children = re.findall(r"^\s*(?:pub(?:\([\w:]+\))?\s+)?mod\s+(\w+)\s*;", text, re.M)
+    for child in children:
+        full = "crate::" + "".join(o + "::" for o in own) + child + "::"
+        text = re.sub(rf"(\buse\s+){child}::", rf"\g<1>{full}", text)
+    return text
 
 
 def crate_graph(src: Path, prefix: str, external: dict):
@@ -91,7 +113,7 @@ def crate_graph(src: Path, prefix: str, external: dict):
     for mod, path in modules.items():
         text = strip_tests(path.read_text())
         name = prefix + mod
-        for p in use_paths(text, "crate"):
+        for p in use_paths(absolute(text, mod), "crate"):
             tgt = resolve(p, set(modules))
             if tgt is not None and tgt != mod and tgt != "":
                 graph[name].add(prefix + tgt)

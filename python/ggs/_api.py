@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 import copy
+import json
 import os
-import re
 import warnings
 from typing import (
     Any,
@@ -66,21 +66,6 @@ def _threads(threads: Optional[int]) -> int:
     if not isinstance(threads, int) or threads < 0:
         raise ValueError(f"threads must be None (all cores) or an integer ≥ 0, got {threads!r}")
     return threads
-
-
-_SIZE = re.compile(r"^\s*(\d+(?:\.\d+)?)\s*([KMGT]?)(?:i?B)?\s*$", re.IGNORECASE)
-
-
-def _bytes(size: Union[int, str, None]) -> Optional[int]:
-    if size is None or isinstance(size, int):
-        if isinstance(size, int) and size <= 0:
-            raise ValueError(f"max_memory must be positive, got {size}")
-        return size
-    m = _SIZE.match(size)
-    if not m:
-        raise ValueError(f"max_memory: cannot read {size!r} (try 2G, 512M or a number of bytes)")
-    scale = 1024 ** "_KMGT".index(m.group(2).upper() or "_")
-    return int(float(m.group(1)) * scale)
 
 
 class Result:
@@ -235,6 +220,12 @@ class Result:
         coarse_ms, target_ms, extents_ms, search_ms, verify_ms, refine_ms, total_ms."""
         return self._fields["timings"]  # type: ignore[no-any-return]
 
+    @property
+    def settings(self) -> Optional[Dict[str, Any]]:
+        """Every setting in force (None for :func:`refine`): pass it as ``settings=`` to
+        register another pair the same way."""
+        return self._fields["settings"]  # type: ignore[no-any-return]
+
     def to_dict(self) -> Dict[str, Any]:
         """Every field, deep-copied."""
         return copy.deepcopy(self._fields)
@@ -264,77 +255,53 @@ def _warn(result: Result) -> Result:
     return result
 
 
+def _plain(value: Any) -> Any:
+    """A numpy scalar as its Python number, for JSON."""
+    if hasattr(value, "item"):
+        return value.item()
+    raise TypeError(f"cannot pass {value!r} as a setting")
+
+
 def native_options(
-    *,
-    preset: Preset = "default",
-    rotations: Union[RotationSetName, str, npt.NDArray[np.float64], None] = None,
-    refine: Optional[RefineMethod] = None,
-    kernel: str = "none",
+    preset: Optional[Preset] = None,
+    settings: Union[Dict[str, Any], StrPath, None] = None,
+    rotations: Union[RotationSetName, StrPath, npt.NDArray[np.float64], None] = None,
     threads: Optional[int] = None,
-    top_k: Optional[int] = None,
-    search: Optional[SearchMode] = None,
-    precision: Precision = "mixed",
-    max_hypotheses: Optional[int] = None,
-    margin: Optional[float] = None,
-    verify_score: Optional[str] = None,
-    verify: bool = True,
-    first_look: bool = True,
-    polish: bool = False,
-    max_memory: Union[int, str, None] = None,
-    distinct_radius: Optional[float] = None,
-    dedup: Optional[float] = None,
-    coarse_factor: Optional[float] = None,
-    coarse_keep: Optional[float] = None,
-    coarse_keep_min: Optional[int] = None,
-    max_distance: Optional[float] = None,
-    distance_quantile: Optional[float] = None,
-    max_iterations: Optional[int] = None,
-    neighbors: Optional[int] = None,
-    refine_cell: Optional[float] = None,
+    **keywords: Any,
 ) -> Tuple[Dict[str, Any], Optional[npt.NDArray[np.float64]]]:
-    """The pipeline options of :func:`register` as the native engine takes them (a dict of
-    plain values), and the rotation matrices when ``rotations`` is an array. Unknown options
-    raise TypeError; out-of-range ones ValueError."""
+    """The options of :func:`register` as the native engine takes them (plain values: the
+    preset, the settings file, the layers of changes as JSON, the threads), and the rotation
+    matrices when ``rotations`` is an array. The engine reads and checks every setting."""
     matrices = None
-    name: Optional[str] = None
-    if isinstance(rotations, str) or rotations is None:
-        name = rotations
-    else:
+    if isinstance(rotations, (str, os.PathLike)):
+        keywords["rotations"] = os.fspath(rotations)
+    elif rotations is not None:
         matrices = np.ascontiguousarray(rotations, dtype=np.float64)
-    if top_k is not None and top_k < 1:
-        raise ValueError("top_k must be at least 1")
-    if max_hypotheses is not None and max_hypotheses < 0:
-        # A negative count cannot cross into the engine's unsigned field; 0 reaches the
-        # engine, whose check (the CLI's too) refuses it with the same words.
-        raise ValueError("invalid parameter max_hypotheses: must be at least 1")
-    options = {
-        "preset": preset,
-        "rotations": name,
-        "refine": refine,
-        "kernel": kernel,
-        "threads": _threads(threads),
-        "top_k": top_k,
-        "search": search,
-        "precision": precision,
-        "max_hypotheses": max_hypotheses,
-        "margin": margin,
-        "verify_score": verify_score,
-        "verify": verify,
-        "first_look": first_look,
-        "polish": polish,
-        "max_memory": _bytes(max_memory),
-        "distinct_radius": distinct_radius,
-        "dedup": dedup,
-        "coarse_factor": coarse_factor,
-        "coarse_keep": coarse_keep,
-        "coarse_keep_min": coarse_keep_min,
-        "max_distance": max_distance,
-        "distance_quantile": distance_quantile,
-        "max_iterations": max_iterations,
-        "neighbors": neighbors,
-        "refine_cell": refine_cell,
-    }
-    return options, matrices
+    file = None
+    layers = []
+    if isinstance(settings, (str, os.PathLike)):
+        file = os.path.abspath(os.fspath(settings))
+    elif settings is not None:
+        layers.append(["settings", json.dumps(dict(settings), default=_plain)])
+    given = {k: v for k, v in keywords.items() if v is not None}
+    if given:
+        layers.append(["keyword arguments", json.dumps(given, default=_plain)])
+    native = {"preset": preset, "file": file, "layers": layers, "threads": _threads(threads)}
+    return native, matrices
+
+
+def settings(
+    preset: Optional[Preset] = None,
+    settings: Union[Dict[str, Any], StrPath, None] = None,
+    **keywords: Any,
+) -> Dict[str, Any]:
+    """Every setting a :func:`register` call with these arguments would use, as a dict: the
+    preset (``None``: the settings file's, else ``"default"``) changed by ``settings`` (a
+    dict, or a TOML/JSON settings file as ``ggs settings`` writes it), then by the keyword
+    arguments (any settings key). Raises ValueError for an unknown key or a bad value."""
+    native, _ = native_options(preset, settings, **keywords)
+    result: Dict[str, Any] = json.loads(_ggs.settings(native))
+    return result
 
 
 def register(
@@ -342,26 +309,28 @@ def register(
     target: PointsLike,
     voxel: Optional[float] = None,
     *,
-    preset: Preset = "default",
-    rotations: Union[RotationSetName, str, npt.NDArray[np.float64], None] = None,
+    preset: Optional[Preset] = None,
+    settings: Union[Dict[str, Any], StrPath, None] = None,
+    rotations: Union[RotationSetName, StrPath, npt.NDArray[np.float64], None] = None,
     refine: Optional[RefineMethod] = None,
-    kernel: str = "none",
+    kernel: Optional[str] = None,
     threads: Optional[int] = None,
     top_k: Optional[int] = None,
     search: Optional[SearchMode] = None,
-    precision: Precision = "mixed",
+    precision: Optional[Precision] = None,
     max_hypotheses: Optional[int] = None,
     margin: Optional[float] = None,
     verify_score: Optional[str] = None,
-    verify: bool = True,
-    first_look: bool = True,
-    polish: bool = False,
+    verify: Optional[bool] = None,
+    first_look: Optional[bool] = None,
+    polish: Optional[bool] = None,
     max_memory: Union[int, str, None] = None,
     distinct_radius: Optional[float] = None,
     dedup: Optional[float] = None,
     coarse_factor: Optional[float] = None,
     coarse_keep: Optional[float] = None,
     coarse_keep_min: Optional[int] = None,
+    coarse_hypotheses: Optional[int] = None,
     max_distance: Optional[float] = None,
     distance_quantile: Optional[float] = None,
     max_iterations: Optional[int] = None,
@@ -375,48 +344,40 @@ def register(
     voxel: grid size in the clouds' units (default: the target's longest side / 32, or
       1.5 × the clouds' point spacing when that is larger).
     preset: ``"default"`` — the full-SO(3) rotation set ``hopf15-id``, the coarse-to-fine
-      search, then every distinct coarse hypothesis whose match score is at least half the
-      winner's (at most 32) refined on thinned clouds and scored by how closely both clouds
-      lie to each other within a fixed distance, the best refined by GICP — or ``"paper"``,
-      the GGS paper's configuration (``limited15``, exhaustive, one hypothesis, GICP).
-    The other arguments change the preset:
-    rotations: a name of ``ROTATION_SETS`` or an (N, 3, 3) array of rotation matrices.
-    refine: ``"gicp"``, ``"p2plane"``, ``"p2p"`` or ``"none"``; kernel: ``"none"``,
-      ``"huber:K"``, ``"cauchy:K"``, ``"geman-mcclure:K"`` (K in cloud units).
-    search: ``"exhaustive"`` or ``"coarse-to-fine"``; precision: ``"mixed"`` (f32 with proven
-      error bounds, f64 where they matter: the same picks as ``"f64"``) or ``"f64"``.
-    max_hypotheses, margin: how many distinct hypotheses are verified (at most; default 32)
-      and which (match score ≥ margin × the winner's; default 0.5); verify_score:
-      ``"tight"`` (default: a point within the distance D counts by 1 − d²/D²) or
-      ``"fitness"`` (the share of points within D) or ``"oriented"`` (``"tight"`` counting
-      only points whose normals face the same way); verify=False takes the coarse winner;
-      first_look=False always runs the whole search (by default the hypotheses of the
-      coarse level's best 16 rotations are verified first, and the search stops there when
-      one pose scores at least 0.5 and no distinct pose 0.6 of that); polish=True moves
-      each hypothesis on a finer rotation grid first.
-    top_k: coarse hypotheses reported (of the whole search: it turns the first look off);
-      distinct_radius: degrees that make two rotations distinct (default 2 × the set's
-      step); max_memory: bytes, or ``"2G"``, ``"512M"``;
-      dedup: drop rotations within this many degrees of an earlier one.
-    coarse_factor, coarse_keep, coarse_keep_min: the coarse-to-fine search's coarse voxel
-      (default preset 4 × voxel, otherwise 2 ×), kept fraction (0.01, otherwise 0.02) and
-      minimum kept (16).
-    max_distance, distance_quantile, max_iterations, neighbors: the final refinement's, as in
-      :func:`refine`; refine_cell: it runs on both clouds thinned to cells of this many voxels
-      (default preset 0.2, stopping at steps below 1e-4 rad and 1e-4 source radii; 0: full
-      resolution and the reference stopping rules, as ``preset="paper"``).
+      search, then the distinct coarse hypotheses refined on thinned clouds and scored by how
+      closely both clouds lie to each other within a fixed distance, the best refined by
+      GICP — or ``"paper"``, the GGS paper's configuration (``limited15``, exhaustive, one
+      hypothesis, GICP). ``None``: the settings file's preset, else ``"default"``.
+    settings: changes to the preset: a dict of settings keys (``ggs.settings()`` lists them
+      all with their values; ``result.settings`` is one), or a TOML/JSON settings file.
+    The other arguments change single settings, after ``settings`` (``None``: unchanged);
+    each is the settings key of its name (docs/settings.md says what each does):
+    rotations: a name of ``ROTATION_SETS``, a ``.npy`` file, or an (N, 3, 3) array of
+      rotation matrices; refine: ``"gicp"``, ``"p2plane"``, ``"p2p"`` or ``"none"``;
+      kernel: ``"none"``, ``"huber:K"``, ``"cauchy:K"``, ``"geman-mcclure:K"`` (K in cloud
+      units); search: ``"exhaustive"`` or ``"coarse-to-fine"``; precision: ``"mixed"`` or
+      ``"f64"`` (the same picks); max_hypotheses, margin, verify_score (``"tight"``,
+      ``"fitness"``, ``"oriented"``), verify, first_look, polish: the verification;
+      top_k: coarse hypotheses reported (of the whole search: no first look);
+      distinct_radius, dedup: degrees; max_memory: bytes, or ``"2G"``, ``"512M"``;
+      coarse_factor, coarse_keep, coarse_keep_min, coarse_hypotheses: the coarse-to-fine
+      search; max_distance, distance_quantile, max_iterations, neighbors, refine_cell: the
+      final refinement.
     threads: worker threads (None: all cores); the result does not depend on it.
     progress: called as ``progress(rotations_scored, total)`` while the search runs.
 
-    Returns a :class:`Result`. Ambiguous or low-evidence results issue a :class:`GgsWarning`.
-    Raises ValueError for bad points or options, KeyboardInterrupt on Ctrl-C.
+    Returns a :class:`Result` (``result.settings``: every setting in force). Ambiguous or
+    low-evidence results issue a :class:`GgsWarning`. Raises ValueError for bad points or
+    settings, KeyboardInterrupt on Ctrl-C.
     """
     options, matrices = native_options(
         preset=preset,
+        settings=settings,
         rotations=rotations,
+        threads=threads,
+        voxel=voxel,
         refine=refine,
         kernel=kernel,
-        threads=threads,
         top_k=top_k,
         search=search,
         precision=precision,
@@ -432,6 +393,7 @@ def register(
         coarse_factor=coarse_factor,
         coarse_keep=coarse_keep,
         coarse_keep_min=coarse_keep_min,
+        coarse_hypotheses=coarse_hypotheses,
         max_distance=max_distance,
         distance_quantile=distance_quantile,
         max_iterations=max_iterations,
@@ -441,7 +403,6 @@ def register(
     fields = _ggs.register(
         as_points(source, "source"),
         as_points(target, "target"),
-        voxel,
         options,
         matrices,
         progress,
@@ -459,26 +420,31 @@ def refine(
     distance_quantile: Optional[float] = None,
     max_iterations: Optional[int] = None,
     neighbors: Optional[int] = None,
-    kernel: str = "none",
+    kernel: Optional[str] = None,
     threads: Optional[int] = None,
 ) -> Result:
-    """Refine an initial 4×4 transform ``init`` (``p_target = init · p_source``) by ICP.
+    """Refine an initial 4×4 transform ``init`` (``p_target = init · p_source``) by ICP,
+    with the reference GICP's settings (the ``"paper"`` preset's) changed by the arguments.
 
     method: ``"gicp"``, ``"p2plane"`` or ``"p2p"``. max_distance: a fixed correspondence
     distance (default: the ``distance_quantile``, 0.25, of the nearest-neighbour distances at
     the start); max_iterations: 500; neighbors (normals and covariances): 20; kernel as in
     :func:`register`. Returns a :class:`Result` (its coarse fields are None).
     """
+    given = {
+        "refine": method,
+        "max_distance": max_distance,
+        "distance_quantile": distance_quantile,
+        "max_iterations": max_iterations,
+        "neighbors": neighbors,
+        "kernel": kernel,
+    }
+    changes = {k: v for k, v in given.items() if v is not None}
     fields = _ggs.refine(
         as_points(source, "source"),
         as_points(target, "target"),
         np.ascontiguousarray(init, dtype=np.float64),
-        method,
-        max_distance,
-        distance_quantile,
-        max_iterations,
-        neighbors,
-        kernel,
+        json.dumps(changes, default=_plain),
         _threads(threads),
     )
     return _warn(Result(fields))
@@ -572,7 +538,7 @@ def register_many(
 
         if options.get("threads") is None:
             options["threads"] = 1
-        native_options(**options)  # bad options fail here, not on every worker
+        settings(**{k: v for k, v in options.items() if k != "threads"})  # bad ones fail here
         run_tasks(
             _register_loaded,
             ((k, (src, tgt, voxel, options)) for k, (src, tgt) in enumerate(items)),

@@ -23,6 +23,7 @@ __all__ = [
     "rotation_set",
     "rre",
     "rte",
+    "settings",
     "voxel_downsample",
     "write_point_cloud",
 ]
@@ -33,7 +34,6 @@ PRESETS: List[str]
 def register(
     source: npt.NDArray[Any],
     target: npt.NDArray[Any],
-    voxel: Optional[float],
     options: Dict[str, Any],
     rotation_matrices: Optional[npt.NDArray[np.float64]] = None,
     progress: Optional[Callable[[int, int], None]] = None,
@@ -42,14 +42,10 @@ def refine(
     source: npt.NDArray[Any],
     target: npt.NDArray[Any],
     init: npt.NDArray[np.float64],
-    method: str,
-    max_distance: Optional[float],
-    distance_quantile: Optional[float],
-    max_iterations: Optional[int],
-    neighbors: Optional[int],
-    kernel: str,
+    changes: str,
     threads: int,
 ) -> Dict[str, Any]: ...
+def settings(options: Dict[str, Any]) -> str: ...
 def read_point_cloud(
     path: str,
     format: Optional[str],

@@ -8,7 +8,9 @@
 
 use crate::arrays::to_py_err;
 use crate::interrupt::run_interruptible;
-use crate::registration::{pipeline_config, Options};
+use crate::registration::Options;
+use ggs::pipeline::Preset;
+use ggs::Settings;
 use ggs_bench::benchmark::shard::Shard;
 use ggs_bench::benchmark::{run_pair_with_picture, BenchVoxel, PairRow, Plan, RunDir, Selection};
 use pyo3::exceptions::{PyRuntimeError, PyValueError};
@@ -80,9 +82,12 @@ impl BenchPlan {
             max_rre_deg: s.max_rre,
             max_rte: s.max_rte,
         };
-        let pipeline = pipeline_config(None, &options, None)?;
-        let paper_rotations = options.preset == "paper" && options.rotations.is_none();
-        let plan = Plan::new(&sel, pipeline, paper_rotations).map_err(to_py_err)?;
+        let (preset, settings) = options.settings()?;
+        // A paper run with the paper's rotation set uses the protocol's set of the paper.
+        let paper_rotations = preset == Preset::Paper
+            && settings.rotations == Settings::preset(Preset::Paper).rotations;
+        let plan =
+            Plan::new(&sel, settings, options.threads, paper_rotations).map_err(to_py_err)?;
         Ok(BenchPlan { plan })
     }
 
@@ -115,7 +120,7 @@ impl BenchPlan {
         })?;
         let mut cfg = self.plan.cfg.clone();
         let cancel = Arc::new(AtomicBool::new(false));
-        cfg.pipeline.search.cancel = Some(cancel.clone());
+        cfg.cancel = Some(cancel.clone());
         let (row, png) =
             run_interruptible(py, &cancel, None, || run_pair_with_picture(pair, &cfg))?;
         Ok((row.to_csv(), png.map(|b| PyBytes::new(py, &b))))

@@ -24,6 +24,7 @@ use pyo3::prelude::*;
 fn _ggs(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(registration::register, m)?)?;
     m.add_function(wrap_pyfunction!(registration::refine_py, m)?)?;
+    m.add_function(wrap_pyfunction!(registration::settings, m)?)?;
     m.add_function(wrap_pyfunction!(io::read_point_cloud, m)?)?;
     m.add_function(wrap_pyfunction!(io::write_point_cloud, m)?)?;
     m.add_function(wrap_pyfunction!(io::rotation_set, m)?)?;

@@ -171,5 +171,11 @@ pub fn result_dict<'py>(
     }
     t.set_item("total_ms", total_ms)?;
     d.set_item("timings", t)?;
+    let settings = registration.and_then(|r| r.settings.as_ref());
+    let settings = match settings {
+        Some(s) => Some(py.import("json")?.call_method1("loads", (s.to_string(),))?),
+        None => None,
+    };
+    d.set_item("settings", settings)?;
     Ok(d)
 }

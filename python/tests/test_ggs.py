@@ -97,11 +97,11 @@ def test_nan_rows_and_bad_options():
         ggs.register(a, b, voxel=0.1)
     with pytest.raises(ValueError, match="unknown rotation set"):
         ggs.register(a, a, voxel=0.1, rotations="nope")
-    with pytest.raises(ValueError, match="unknown method"):
+    with pytest.raises(ValueError, match="setting refine: unknown refinement 'icp9'"):
         ggs.register(a, a, voxel=0.1, refine="icp9")
-    with pytest.raises(ValueError, match="voxel: must be a positive number"):
+    with pytest.raises(ValueError, match="setting voxel: must be a number > 0"):
         ggs.register(a, a, voxel=-1.0)
-    with pytest.raises(ValueError, match="unknown mode"):
+    with pytest.raises(ValueError, match="setting search: unknown variant `greedy`"):
         ggs.register(a, a, voxel=0.1, search="greedy")
     with pytest.raises(ValueError, match="precision"):
         ggs.register(a, a, voxel=0.1, precision="f16")
@@ -154,8 +154,10 @@ def test_register_bundled_pair_and_result_fields():
     r32b = ggs.register(source.astype(np.float32), target, voxel=0.006)
     np.testing.assert_array_equal(r32.transformation, r32b.transformation)
     # refine() from the verified pose reproduces register()'s final refinement at full
-    # resolution exactly; the default's (thinned clouds, a step tolerance) lies close to it.
-    full = ggs.register(source, target, voxel=0.006, refine_cell=0)
+    # resolution with the reference's stopping rules exactly; the default's (thinned clouds,
+    # a step tolerance) lies close to it.
+    reference = {"refine_cell": 0, "refine_min_step": 0, "max_iterations": 500}
+    full = ggs.register(source, target, voxel=0.006, settings=reference)
     again = ggs.refine(source, target, chosen[0]["transformation"])
     np.testing.assert_array_equal(again.transformation, full.transformation)
     assert again.score is None and again.fitness == full.fitness and again.confidence is None
@@ -178,7 +180,7 @@ def test_presets():
     np.testing.assert_array_equal(unverified.transformation, unverified.coarse_transformation)
     with pytest.raises(ValueError, match="preset"):
         ggs.register(source, target, voxel=0.006, preset="fast")
-    with pytest.raises(ValueError, match="need verification"):
+    with pytest.raises(ValueError, match="needs verification"):
         ggs.register(source, target, voxel=0.006, preset="paper", max_hypotheses=3)
 
 
@@ -458,9 +460,9 @@ def test_verify_score_tight_weighs_closeness_fitness_counts():
     assert [o["rank"] for o in oriented.verified] == [t["rank"] for t in tight.verified]
     for o, t in zip(oriented.verified, tight.verified):
         assert o["score"] <= t["score"]
-    with pytest.raises(ValueError, match="tight, fitness or oriented"):
+    with pytest.raises(ValueError, match="unknown variant `close`"):
         ggs.register(source, target, voxel=0.006, verify_score="close")
-    with pytest.raises(ValueError, match="need verification"):
+    with pytest.raises(ValueError, match="needs verification"):
         ggs.register(source, target, voxel=0.006, verify=False, verify_score="fitness")
 
 
@@ -578,3 +580,27 @@ def test_render_returns_an_image_that_shows_the_alignment():
         ggs.render(target, view="top")  # type: ignore[arg-type]
     with pytest.raises(ValueError, match="size must be"):
         ggs.render(target, size=(0, 10))
+
+
+def test_settings_are_one_dict_that_a_result_echoes_and_a_call_takes_back(tmp_path):
+    source, target = bunny_small()
+    defaults = ggs.settings()
+    assert defaults["margin"] == 0.5 and defaults["rotations"] == "hopf15-id"
+    assert ggs.settings("paper")["search"] == "exhaustive"
+    changed = ggs.settings(settings={"margin": 0.4}, max_hypotheses=8)
+    assert (changed["margin"], changed["max_hypotheses"]) == (0.4, 8)
+    r = ggs.register(source, target, voxel=0.006, margin=0.4)
+    assert r.settings is not None
+    assert r.settings == ggs.settings(voxel=0.006, margin=0.4)
+    again = ggs.register(source, target, settings=r.settings)
+    assert np.array_equal(again.transformation, r.transformation)
+    toml = tmp_path / "scans.toml"
+    toml.write_text('preset = "paper"\nvoxel = 0.006\n')
+    assert ggs.settings(settings=toml)["search"] == "exhaustive"
+    assert ggs.settings(settings=str(toml), preset="default")["search"] == "coarse-to-fine"
+    with pytest.raises(ValueError, match=r"setting margn: unknown setting \(did you mean margin\?\)"):
+        ggs.settings(settings={"margn": 0.3})
+    with pytest.raises(ValueError, match="scans.toml: setting voxel"):
+        toml.write_text("voxel = -2.0\n")
+        ggs.settings(settings=toml)
+    assert ggs.refine(source, target, r.transformation).settings is None

@@ -4,8 +4,8 @@
 mod common;
 
 use ggs::io::kitti::write_kitti_bin;
-use ggs::pipeline::RegistrationConfig;
 use ggs::transform::Rigid;
+use ggs::Settings;
 use ggs_bench::benchmark::protocol::{eth_selection, parse_gt_log, Protocol};
 use ggs_bench::benchmark::{missing_files, run, BenchPair, CloudRef, Plan, RunConfig};
 use std::path::{Path, PathBuf};
@@ -178,10 +178,9 @@ fn kitti_like(dir: &Path) -> Vec<BenchPair> {
 fn config() -> RunConfig {
     RunConfig {
         voxel: None,
-        pipeline: RegistrationConfig {
-            threads: 2,
-            ..RegistrationConfig::default()
-        },
+        settings: Settings::default(),
+        threads: 2,
+        cancel: None,
         max_rre_deg: 10.0,
         max_rte: Some(0.01),
         default_voxel: None,
@@ -262,7 +261,7 @@ fn a_run_directory_of_another_configuration_is_refused() {
     assert!(out.join("run.json").is_file());
     // The same configuration resumes (on any thread count)...
     let mut same = config();
-    same.pipeline.threads = 1;
+    same.threads = 1;
     let again = run(&kitti_plan(&pairs[..1], &same), &out, |_, _, _| {}).unwrap();
     assert_eq!(again.resumed, 1);
     // ...another one does not mix its rows with the earlier ones.
@@ -281,10 +280,10 @@ fn a_run_directory_of_another_configuration_is_refused() {
     assert!(run(&kitti_plan(&pairs, &moved), &out, |_, _, _| {}).is_err());
     // The final refinement's resolution and the memory budget are settings of the run too.
     let mut full_resolution = config();
-    full_resolution.pipeline.final_stage.cell_voxels = 0.0;
+    full_resolution.settings.refine_cell = 0.0;
     assert!(run(&kitti_plan(&pairs, &full_resolution), &out, |_, _, _| {}).is_err());
     let mut budget = config();
-    budget.pipeline.search.max_memory = Some(1 << 40);
+    budget.settings.max_memory = Some(1 << 40);
     assert!(run(&kitti_plan(&pairs, &budget), &out, |_, _, _| {}).is_err());
     std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -4,6 +4,8 @@
 use crate::pipeline_args::PipelineArgs;
 use anyhow::{bail, Context, Result};
 use clap::Args;
+use ggs::pipeline::Preset;
+use ggs::Settings;
 use ggs_bench::benchmark::shard::Shard;
 use ggs_bench::benchmark::{self, BenchVoxel, Plan, Selection};
 use std::path::PathBuf;
@@ -86,9 +88,11 @@ pub fn run(args: BenchArgs) -> Result<()> {
         max_rre_deg: args.max_rre,
         max_rte: args.max_rte,
     };
-    let pipeline = args.pipeline.config(args.threads)?;
-    let paper_rotations = args.pipeline.preset == "paper" && args.pipeline.rotations.is_none();
-    let plan = Plan::new(&selection, pipeline, paper_rotations)?;
+    let (preset, settings) = args.pipeline.settings(|_| {})?;
+    // A paper run with the paper's rotation set uses the protocol's set of the paper.
+    let paper_rotations =
+        preset == Preset::Paper && settings.rotations == Settings::preset(Preset::Paper).rotations;
+    let plan = Plan::new(&selection, settings, args.threads, paper_rotations)?;
     let out = args.out.clone().unwrap_or_else(|| plan.default_out());
     let pb = crate::progress::bar(plan.pairs.len(), "pairs", args.quiet);
     let mut successes = 0;

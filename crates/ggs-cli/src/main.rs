@@ -21,8 +21,9 @@ mod pipeline_args;
 mod progress;
 mod refine_args;
 mod register;
+mod settings_cmd;
 
-use clap::{Parser, Subcommand};
+use clap::{CommandFactory, FromArgMatches, Parser, Subcommand};
 use std::process::ExitCode;
 
 /// Correspondence-free global registration of 3-D point clouds (Greedy Grid Search).
@@ -45,6 +46,9 @@ enum Command {
     Convert(Box<files::ConvertArgs>),
     /// Write a rotation set to a .npy file of shape [N, 3, 3] (or print its size).
     Rotations(register::RotationsArgs),
+    /// Print the settings a run would use (a preset, a settings file, --set and the flags
+    /// applied), as TOML to save and pass to --config, or as JSON.
+    Settings(Box<settings_cmd::SettingsArgs>),
     /// Run a benchmark protocol (3dmatch, kitti, eth, fpv1) or a manifest of pairs.
     Bench(Box<bench::BenchArgs>),
     /// Generate partial-view pairs (FAUST-partial style) from scans or meshes, or rebuild
@@ -88,7 +92,8 @@ fn error_text(e: &anyhow::Error) -> String {
 }
 
 fn main() -> ExitCode {
-    let cli = Cli::parse();
+    let matches = pipeline_args::with_preset_values(Cli::command()).get_matches();
+    let cli = Cli::from_arg_matches(&matches).unwrap_or_else(|e| e.exit());
     tracing_subscriber::fmt()
         .with_writer(std::io::stderr)
         .with_env_filter(
@@ -105,6 +110,7 @@ fn main() -> ExitCode {
         Command::Info(a) => files::run_info(a),
         Command::Convert(a) => files::run_convert(*a),
         Command::Bench(a) => bench::run(*a),
+        Command::Settings(a) => settings_cmd::run(*a),
         Command::Partial(a) => partial::run(*a),
     };
     match outcome {

@@ -1,24 +1,65 @@
-//! The argument groups of the pipeline, shared by `ggs register` and `ggs bench`: a preset and
-//! the flags that change it.
+//! The pipeline's flags, shared by `ggs register` and `ggs bench`: a preset, a settings file,
+//! and flags that change single settings. Each flag is one settings key ([`ggs::Settings`]);
+//! the ranges and rules are the library's.
 
-use crate::refine_args::{parse_method, RefineOptions};
-use anyhow::{bail, Context, Result};
+use anyhow::{Context, Result};
 use clap::Args;
-use ggs::coarse;
-use ggs::pipeline::{Preset, RegistrationConfig};
-use ggs::rotations::RotationSet;
+use ggs::pipeline::Preset;
+use ggs::settings::{Changes, Settings, SettingsFile};
+use serde_json::Value;
+use std::path::PathBuf;
 
-/// The configuration of the pipeline, shared by `register` and `bench`: a preset and the
-/// flags that change it.
+/// Flags that set one settings key each: (flag's argument id, key). Their help ends with the
+/// presets' values ([`with_preset_values`]).
+pub const FLAG_KEYS: &[(&str, &str)] = &[
+    ("voxel", "voxel"),
+    ("rotations", "rotations"),
+    ("rotations_file", "rotations"),
+    ("dedup", "dedup"),
+    ("search", "search"),
+    ("precision", "precision"),
+    ("coarse_factor", "coarse_factor"),
+    ("coarse_keep", "coarse_keep"),
+    ("coarse_keep_min", "coarse_keep_min"),
+    ("coarse_hypotheses", "coarse_hypotheses"),
+    ("top_k", "top_k"),
+    ("distinct_radius", "distinct_radius"),
+    ("max_memory", "max_memory"),
+    ("no_first_look", "first_look"),
+    ("no_verify", "verify"),
+    ("max_hypotheses", "max_hypotheses"),
+    ("margin", "margin"),
+    ("verify_score", "verify_score"),
+    ("polish", "polish"),
+    ("refine", "refine"),
+    ("max_distance", "max_distance"),
+    ("distance_quantile", "distance_quantile"),
+    ("kernel", "kernel"),
+    ("max_iterations", "max_iterations"),
+    ("neighbors", "neighbors"),
+    ("refine_cell", "refine_cell"),
+];
+
+/// The configuration of the pipeline, shared by `register` and `bench`: a preset, a settings
+/// file and the flags that change them.
 #[derive(Args, Clone)]
 pub struct PipelineArgs {
-    /// default: full-SO(3) set, coarse-to-fine, verification of the distinct hypotheses
-    /// (checking the free space of clouds that are scans from their origin), GICP; paper:
-    /// the GGS paper's configuration (limited15, exhaustive, one hypothesis, GICP).
-    #[arg(long, default_value = "default")]
-    pub preset: String,
-    /// Built-in rotation set: hopf15-id (default), limited15, full15, limited10, hopf15,
-    /// hopf15-dedup, ico162-s10.
+    /// The settings a run starts from: default (full-SO(3) set, coarse-to-fine, verification
+    /// of the distinct hypotheses, GICP on thinned clouds) or paper (the GGS paper's:
+    /// limited15, exhaustive, one hypothesis, GICP). Default: the settings file's `preset`,
+    /// else default.
+    #[arg(long)]
+    pub preset: Option<String>,
+    /// Settings file (TOML or JSON): `preset` and any settings keys (`ggs settings` lists
+    /// them with their values); the flags given change it.
+    #[arg(long, value_name = "FILE")]
+    pub config: Option<PathBuf>,
+    /// Change one setting, KEY=VALUE (repeatable; after --config, before the other flags),
+    /// e.g. --set verify_cell=0.25.
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    pub set: Vec<String>,
+    /// Built-in rotation set: hopf15-id, limited15, full15, limited10, hopf15, hopf15-dedup,
+    /// ico162-s10; or a .npy file of shape [N, 3, 3].
     #[arg(long)]
     pub rotations: Option<String>,
     #[command(flatten)]
@@ -29,152 +70,193 @@ pub struct PipelineArgs {
     /// Verify the hypotheses whose match score is at least this fraction of the winner's.
     #[arg(long, value_name = "F")]
     pub margin: Option<f64>,
-    /// How the verification scores a pose: tight (default: each point within D counts by
-    /// 1 − d²/D², so an exact small overlap beats a loose large one), fitness (the share of
-    /// points within D) or oriented (tight, counting only points whose normals, turned away
-    /// from their cloud's centroid, face the same way: single views of convex objects).
+    /// How the verification scores a pose: tight (each point within D counts by 1 − d²/D²,
+    /// so an exact small overlap beats a loose large one), fitness (the share of points within
+    /// D) or oriented (tight, counting only points whose normals, turned away from their
+    /// cloud's centroid, face the same way: single views of convex objects).
     #[arg(long, value_name = "SCORE")]
     pub verify_score: Option<String>,
     /// Take the coarse winner without verification.
     #[arg(long)]
     pub no_verify: bool,
-    /// Always run the whole search. Without this flag the default preset first verifies the
-    /// hypotheses of the coarse level's best 16 rotations and stops there when one pose
-    /// scores at least 0.5 and no distinct pose 0.6 of that (docs/pipeline.md, "The first
-    /// look").
+    /// Always run the whole search. Otherwise the coarse-to-fine search first verifies the
+    /// hypotheses of the coarse level's best rotations and stops there when one pose scores
+    /// well and no distinct pose nearly as well (docs/pipeline.md, "The first look").
     #[arg(long)]
     pub no_first_look: bool,
     /// Polish each hypothesis on a finer rotation grid (7 rotations a step, scored by the
-    /// correlation) before its ICP; off by default (measured: no change on the benchmarks).
+    /// correlation) before its ICP.
     #[arg(long)]
     pub polish: bool,
-    /// Refinement after the coarse search: gicp (default), p2plane, p2p or none.
+    /// Refinement after the coarse search: gicp, p2plane, p2p or none.
     #[arg(long)]
     pub refine: Option<String>,
-    /// Final refinement on both clouds thinned to cells of this many voxels (default preset
-    /// 0.2, stopping at steps below 1e-4 rad and 1e-4 source radii; 0: full resolution and
-    /// the reference stopping rules, as --preset paper).
+    /// Final refinement on both clouds thinned to one point per cell of this many voxels (0:
+    /// full resolution); it stops at steps below refine_min_step (--set).
     #[arg(long, value_name = "VOXELS")]
     pub refine_cell: Option<f64>,
     #[command(flatten)]
     pub refine_options: RefineOptions,
 }
 
-impl PipelineArgs {
-    /// The preset, changed by the flags given (voxel and rotation set not included).
-    pub fn config(&self, threads: usize) -> Result<RegistrationConfig> {
-        let preset: Preset = self.preset.parse().context("--preset")?;
-        let mut cfg = RegistrationConfig::preset(preset);
-        cfg.threads = threads;
-        if let Some(name) = &self.rotations {
-            cfg.rotations = RotationSet::named(name)?;
-        }
-        let (mode, precision) = self.search.parse(cfg.search.mode)?;
-        cfg.search.mode = mode;
-        cfg.search.precision = precision;
-        if self.no_verify {
-            cfg.verify = None;
-        }
-        if self.no_first_look {
-            cfg.first_look = None;
-        }
-        if let Some(v) = &mut cfg.verify {
-            if let Some(n) = self.max_hypotheses {
-                v.max_hypotheses = n;
-            }
-            if let Some(m) = self.margin {
-                v.margin = m;
-            }
-            // The ranges are the core's ([`VerifyConfig::validate`]).
-            v.validate().context("--max-hypotheses / --margin")?;
-            if let Some(sc) = &self.verify_score {
-                v.score = sc.parse().context("--verify-score")?;
-            }
-        } else if self.max_hypotheses.is_some()
-            || self.margin.is_some()
-            || self.verify_score.is_some()
-        {
-            bail!("--max-hypotheses, --margin and --verify-score need verification (not with --no-verify or --preset paper)");
-        }
-        if self.polish {
-            cfg.polish = Some(ggs::pipeline::PolishConfig::default());
-        }
-        if let Some(c) = self.refine_cell {
-            cfg.final_stage = cfg
-                .final_stage
-                .with_cell_voxels(c)
-                .context("--refine-cell")?;
-        }
-        if self.refine_options.max_iterations.is_some() {
-            // The user's cap, not the stage's.
-            cfg.final_stage.max_iterations = usize::MAX;
-        }
-        let method = match &self.refine {
-            Some(name) => parse_method(name)?,
-            None => cfg.refine.map(|r| r.method),
-        };
-        cfg.refine = match method {
-            Some(m) => Some(self.refine_options.config(m, threads)?),
-            None => None,
-        };
-        Ok(cfg)
-    }
-}
-
 /// How the rotations are searched (shared by `register` and `bench`).
 #[derive(Args, Clone)]
 pub struct SearchArgs {
-    /// exhaustive: every rotation at the voxel size (GGS); coarse-to-fine (the default preset's):
-    /// every rotation at --coarse-factor × voxel, then the best --coarse-keep of them and their
-    /// grid neighbours at the voxel size (much faster; same answers on every benchmark pair).
+    /// exhaustive: every rotation at the voxel size (GGS); coarse-to-fine: every rotation at
+    /// --coarse-factor × voxel, then the best --coarse-keep of them and their grid neighbours
+    /// at the voxel size.
     #[arg(long, value_name = "MODE")]
     pub search: Option<String>,
     /// Correlation arithmetic: mixed (f32 with proven error bounds, exact re-scoring of every
     /// rotation whose bound reaches the best: same picks as f64) or f64.
-    #[arg(long, default_value = "mixed")]
-    pub precision: String,
-    /// Coarse voxel = this × voxel (coarse-to-fine; default preset 4, else 2).
+    #[arg(long)]
+    pub precision: Option<String>,
+    /// Coarse voxel = this × voxel (coarse-to-fine).
     #[arg(long, value_name = "F")]
     pub coarse_factor: Option<f64>,
-    /// Fraction of the rotations kept from the coarse level (coarse-to-fine; default preset
-    /// 0.01, else 0.02).
+    /// Fraction of the rotations kept from the coarse level (coarse-to-fine).
     #[arg(long, value_name = "FRAC")]
     pub coarse_keep: Option<f64>,
-    /// Keep at least this many rotations from the coarse level (coarse-to-fine; default 16).
+    /// Keep at least this many rotations from the coarse level (coarse-to-fine).
     #[arg(long, value_name = "N")]
     pub coarse_keep_min: Option<usize>,
     /// Verify also the N best distinct hypotheses of the coarse level, each with its own
-    /// translation at the coarse voxel (coarse-to-fine; default preset 8, else 0; they find
-    /// the right pose of low-overlap pairs that the voxel size ranks too low).
+    /// translation at the coarse voxel (coarse-to-fine; they find the right pose of
+    /// low-overlap pairs that the voxel size ranks too low).
     #[arg(long, value_name = "N")]
     pub coarse_hypotheses: Option<usize>,
 }
 
-impl SearchArgs {
-    /// The search mode (the preset's `mode` unless --search is given) and precision.
-    pub fn parse(
-        &self,
-        preset: coarse::SearchMode,
-    ) -> Result<(coarse::SearchMode, coarse::Precision)> {
-        // The preset's parameters (the library's defaults for a preset without them), changed
-        // by the options given.
-        let d = match preset {
-            coarse::SearchMode::CoarseToFine(c) => c,
-            coarse::SearchMode::Exhaustive => coarse::CoarseToFine::default(),
-        };
-        let c2f = coarse::CoarseToFine {
-            factor: self.coarse_factor.unwrap_or(d.factor),
-            keep_fraction: self.coarse_keep.unwrap_or(d.keep_fraction),
-            keep_min: self.coarse_keep_min.unwrap_or(d.keep_min),
-            neighbour_deg: d.neighbour_deg,
-            hypotheses: self.coarse_hypotheses.unwrap_or(d.hypotheses),
-        };
-        let mode = match (&self.search, preset) {
-            (Some(name), _) => coarse::SearchMode::from_name(name, c2f).context("--search")?,
-            (None, coarse::SearchMode::CoarseToFine(_)) => coarse::SearchMode::CoarseToFine(c2f),
-            (None, m) => m,
-        };
-        let precision = self.precision.parse().context("--precision")?;
-        Ok((mode, precision))
+/// The final refinement's options (shared by `register`, `bench` and `refine`).
+#[derive(Args, Clone)]
+pub struct RefineOptions {
+    /// Fixed correspondence distance in cloud units (otherwise the --distance-quantile
+    /// quantile of the source-to-target nearest-neighbour distances at the start).
+    #[arg(long, value_name = "D")]
+    pub max_distance: Option<f64>,
+    /// Quantile of the nearest-neighbour distances taken as correspondence distance.
+    #[arg(long, value_name = "Q")]
+    pub distance_quantile: Option<f64>,
+    /// Robust kernel: none, huber:K, cauchy:K, geman-mcclure:K (K in cloud units).
+    #[arg(long)]
+    pub kernel: Option<String>,
+    /// Iteration cap of the final refinement.
+    #[arg(long)]
+    pub max_iterations: Option<usize>,
+    /// Neighbours for normals and covariances.
+    #[arg(long)]
+    pub neighbors: Option<usize>,
+}
+
+/// `key` set to `value` when its flag (`--key`, dashed) was given; errors name the flag.
+pub fn put<T: Into<Value> + Clone>(changes: &mut Changes, key: &str, value: &Option<T>) {
+    if let Some(v) = value {
+        changes.set_from(format!("--{}", key.replace('_', "-")), key, v.clone());
     }
+}
+
+/// `key` set to `value` when the switch `flag` was given.
+fn switch(changes: &mut Changes, flag: &str, given: bool, key: &str, value: bool) {
+    if given {
+        changes.set_from(flag, key, value);
+    }
+}
+
+impl RefineOptions {
+    /// The refinement flags given, as changes.
+    pub fn put_changes(&self, c: &mut Changes) {
+        put(c, "max_distance", &self.max_distance);
+        put(c, "distance_quantile", &self.distance_quantile);
+        put(c, "kernel", &self.kernel);
+        put(c, "max_iterations", &self.max_iterations);
+        put(c, "neighbors", &self.neighbors);
+    }
+}
+
+impl PipelineArgs {
+    /// The pipeline flags given, as changes (in the order of [`FLAG_KEYS`]).
+    fn flag_changes(&self) -> Changes {
+        let mut c = Changes::new("command line");
+        put(&mut c, "rotations", &self.rotations);
+        let s = &self.search;
+        put(&mut c, "search", &s.search);
+        put(&mut c, "precision", &s.precision);
+        put(&mut c, "coarse_factor", &s.coarse_factor);
+        put(&mut c, "coarse_keep", &s.coarse_keep);
+        put(&mut c, "coarse_keep_min", &s.coarse_keep_min);
+        put(&mut c, "coarse_hypotheses", &s.coarse_hypotheses);
+        switch(
+            &mut c,
+            "--no-first-look",
+            self.no_first_look,
+            "first_look",
+            false,
+        );
+        switch(&mut c, "--no-verify", self.no_verify, "verify", false);
+        put(&mut c, "max_hypotheses", &self.max_hypotheses);
+        put(&mut c, "margin", &self.margin);
+        put(&mut c, "verify_score", &self.verify_score);
+        switch(&mut c, "--polish", self.polish, "polish", true);
+        put(&mut c, "refine", &self.refine);
+        put(&mut c, "refine_cell", &self.refine_cell);
+        self.refine_options.put_changes(&mut c);
+        c
+    }
+
+    /// The settings: the preset (--preset, else the file's, else default), changed by the
+    /// settings file, then by --set, then by the flags (`extra`: the command's own).
+    pub fn settings(&self, extra: impl FnOnce(&mut Changes)) -> Result<(Preset, Settings)> {
+        let file = match &self.config {
+            Some(path) => Some(SettingsFile::read(path)?),
+            None => None,
+        };
+        let preset: Preset = match (&self.preset, &file) {
+            (Some(name), _) => name.parse().context("--preset")?,
+            (None, Some(f)) => f.preset.unwrap_or(Preset::Default),
+            (None, None) => Preset::Default,
+        };
+        let mut assignments = Changes::new("--set");
+        for a in &self.set {
+            assignments.set_assignment(a)?;
+        }
+        let mut flags = self.flag_changes();
+        extra(&mut flags);
+        let mut layers: Vec<Changes> = file.map(|f| f.changes).into_iter().collect();
+        layers.extend([assignments, flags]);
+        Ok((preset, Settings::layered(preset, &layers)?))
+    }
+}
+
+/// The CLI with the help of each settings flag of `register` and `bench` ending in the
+/// presets' values, read from [`Settings::preset`]: the help cannot state a value the code
+/// does not use.
+pub fn with_preset_values(cli: clap::Command) -> clap::Command {
+    let default = Settings::preset(Preset::Default).to_json();
+    let paper = Settings::preset(Preset::Paper).to_json();
+    let show = |v: &Value| match v {
+        Value::Null => "unset".to_string(),
+        Value::String(s) => s.clone(),
+        other => other.to_string(),
+    };
+    let annotate = |mut command: clap::Command| {
+        for (id, key) in FLAG_KEYS {
+            if !command.get_arguments().any(|a| a.get_id() == *id) {
+                continue;
+            }
+            let (d, p) = (show(&default[*key]), show(&paper[*key]));
+            let values = if d == p {
+                format!("[setting {key}: {d}]")
+            } else {
+                format!("[setting {key}: {d}; --preset paper: {p}]")
+            };
+            command = command.mut_arg(*id, |a| {
+                let help = a.get_help().map(|h| h.to_string()).unwrap_or_default();
+                a.help(format!("{help} {values}"))
+            });
+        }
+        command
+    };
+    cli.mut_subcommand("register", annotate)
+        .mut_subcommand("bench", annotate)
+        .mut_subcommand("settings", annotate)
 }

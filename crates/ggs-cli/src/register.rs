@@ -1,15 +1,17 @@
 //! `ggs register` and `ggs rotations`.
 
 use crate::files::{self, InputArgs};
-use crate::refine_args::{parse_method, print_report, read_matrix, RefineOptions};
+use crate::pipeline_args::{put, RefineOptions};
+use crate::refine_args::{print_report, read_matrix};
 use anyhow::{Context, Result};
 use clap::Args;
 use ggs::coarse;
 use ggs::html::registration::RegistrationReport;
 use ggs::io::{self, ReadOptions};
-use ggs::pipeline::{self, Registration, RegistrationConfig, Verification, VoxelSize};
+use ggs::pipeline::{self, Preset, Registration, RegistrationConfig, Verification};
 use ggs::refine;
 use ggs::rotations::RotationSet;
+use ggs::settings::{Changes, Settings};
 use ggs::{Cloud, Rigid};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -21,7 +23,8 @@ pub struct RegisterArgs {
     pub source: PathBuf,
     /// Target point cloud.
     pub target: PathBuf,
-    /// Voxel size in the clouds' units; default: the target's longest side / 32, or 1.5 × the point spacing when larger
+    /// Voxel size in the clouds' units; unset: the target's longest side / auto_voxel_cells,
+    /// or auto_voxel_spacings × the point spacing when larger
     #[arg(long, allow_negative_numbers = true)]
     pub voxel: Option<f64>,
     #[command(flatten)]
@@ -35,16 +38,16 @@ pub struct RegisterArgs {
     /// Worker threads (default: all cores). The result does not depend on it.
     #[arg(long, default_value_t = 0)]
     pub threads: usize,
-    /// Report the K best distinct coarse hypotheses of the whole search (default: as many as
+    /// Report the K best distinct coarse hypotheses of the whole search (unset: as many as
     /// are verified). Runs the whole search, as --no-first-look: a first look reports only
-    /// the distinct poses among its 16 rotations.
+    /// the distinct poses among its own few rotations.
     #[arg(long)]
     pub top_k: Option<usize>,
-    /// Rotations within this angle (degrees) of a better one are not distinct
-    /// (default: 2 × the set's step).
+    /// Rotations within this angle (degrees) of a better one are not distinct (unset: 2 × the
+    /// set's step).
     #[arg(long, value_name = "DEG")]
     pub distinct_radius: Option<f64>,
-    /// Memory budget, e.g. 2G or 512M (default: half of physical memory).
+    /// Memory budget of the search, e.g. 2G or 512M (unset: half of physical memory).
     #[arg(long, value_name = "SIZE")]
     pub max_memory: Option<String>,
     /// Print the time of every stage (wall and CPU per stage).
@@ -148,38 +151,25 @@ fn load_pair(args: &RegisterArgs, opts: &ReadOptions) -> Result<(Cloud, Cloud)> 
     Ok((source?, target?))
 }
 
-/// The rotation set: --rotations-file, else the configuration's, then --dedup.
-fn rotation_set(args: &RegisterArgs, configured: RotationSet) -> Result<RotationSet> {
-    let set = match &args.rotations_file {
-        Some(f) => io::npy::read_rotation_set(f)?,
-        None => configured,
-    };
-    Ok(match args.dedup {
-        Some(tol) => set.without_duplicates_within(tol).context("--dedup")?,
-        None => set,
+/// The settings from the command line, and the preset they start from.
+fn settings(args: &RegisterArgs) -> Result<(Preset, Settings)> {
+    args.pipeline.settings(|c| {
+        put(c, "voxel", &args.voxel);
+        if let Some(file) = &args.rotations_file {
+            c.set_from("--rotations-file", "rotations", file.display().to_string());
+        }
+        put(c, "dedup", &args.dedup);
+        put(c, "top_k", &args.top_k);
+        put(c, "distinct_radius", &args.distinct_radius);
+        put(c, "max_memory", &args.max_memory);
     })
 }
 
-/// The pipeline's configuration from the command line.
-fn config(args: &RegisterArgs) -> Result<RegistrationConfig> {
-    let mut cfg = args.pipeline.config(args.threads)?;
-    cfg.rotations = rotation_set(args, cfg.rotations)?;
-    if let Some(v) = args.voxel {
-        cfg.voxel = VoxelSize::Fixed(v);
-    }
-    if let Some(k) = args.top_k {
-        cfg.search.top_k = k;
-        cfg.first_look = None;
-    }
-    cfg.search.distinct_radius_deg = args.distinct_radius;
-    cfg.search.max_memory = match &args.max_memory {
-        Some(m) => Some(
-            ggs::memory::parse_size(m)
-                .with_context(|| format!("--max-memory: cannot read '{m}' (try 2G or 512M)"))?,
-        ),
-        None => None,
-    };
-    Ok(cfg)
+/// The settings and the stages' parameters from the command line.
+fn config(args: &RegisterArgs) -> Result<(Preset, Settings, RegistrationConfig)> {
+    let (preset, settings) = settings(args)?;
+    let cfg = settings.plan(args.threads)?;
+    Ok((preset, settings, cfg))
 }
 
 pub fn run(args: RegisterArgs) -> Result<()> {
@@ -195,7 +185,7 @@ pub fn run(args: RegisterArgs) -> Result<()> {
             .unwrap_or_else(|panic| std::panic::resume_unwind(panic));
         (cfg, clouds)
     });
-    let mut cfg = cfg?;
+    let (preset, settings, mut cfg) = cfg?;
     let (source, target) = clouds?;
     let read_ms = t0.elapsed().as_secs_f64() * 1e3;
     let pb = crate::progress::bar(cfg.rotations.len(), "rotations", args.quiet);
@@ -203,7 +193,8 @@ pub fn run(args: RegisterArgs) -> Result<()> {
     cfg.search.progress = Some(Arc::new(move |n| pbc.set_position(n as u64)));
     let result = pipeline::register(&source, &target, &cfg);
     pb.finish_and_clear();
-    let reg = result?;
+    let mut reg = result?;
+    reg.settings = Some(settings.to_json());
     let final_t = reg.transform;
     write_outputs(&args.io, &source, &final_t)?;
     if let Some(path) = &args.overlay {
@@ -225,10 +216,10 @@ pub fn run(args: RegisterArgs) -> Result<()> {
         }
     }
     if args.io.json {
-        print_json(&args, &reg, read_ms, total_ms)?;
+        print_json(&args, preset, &reg, read_ms, total_ms)?;
     } else {
         out!("{}", final_t.to_text());
-        print_summary(&reg, &args.pipeline.preset, read_ms, total_ms)?;
+        print_summary(&reg, preset.name(), read_ms, total_ms)?;
         if let Some(r) = &reg.refine {
             print_report(r)?;
             if reg.refine_cell > 0.0 {
@@ -267,11 +258,18 @@ fn command_line() -> String {
 
 /// The `--json` document: the inputs, the answer, the search, the verification, the
 /// refinement and the times.
-fn print_json(args: &RegisterArgs, reg: &Registration, read_ms: f64, total_ms: f64) -> Result<()> {
+fn print_json(
+    args: &RegisterArgs,
+    preset: Preset,
+    reg: &Registration,
+    read_ms: f64,
+    total_ms: f64,
+) -> Result<()> {
     let out = serde_json::json!({
         "source": args.source,
         "target": args.target,
-        "preset": args.pipeline.preset,
+        "preset": preset.name(),
+        "settings": reg.settings,
         "voxel": reg.voxel,
         "voxel_auto": reg.voxel_rule.is_some(),
         "voxel_rule": reg.voxel_rule,
@@ -573,9 +571,13 @@ fn peak_memory_note() -> String {
 
 pub fn run_refine(args: RefineArgs) -> Result<()> {
     let format = args.io.input.options()?;
-    let method =
-        parse_method(&args.method)?.context("ggs refine needs a method: gicp, p2plane or p2p")?;
-    let cfg = args.refine_options.config(method, args.threads)?;
+    // The reference GICP's settings (the paper preset's), changed by the flags.
+    let mut flags = Changes::new("command line");
+    flags.set_from("--method", "refine", args.method.clone());
+    args.refine_options.put_changes(&mut flags);
+    let cfg = Settings::layered(Preset::Paper, &[flags])?
+        .refine_config(args.threads)
+        .context("ggs refine needs a method: gicp, p2plane or p2p")?;
     let init = read_matrix(&args.init)?;
     let source = load(&args.source, &format, args.quiet)?;
     let target = load(&args.target, &format, args.quiet)?;

@@ -317,7 +317,7 @@ fn the_paper_preset_is_the_published_configuration() {
             "--max-hypotheses",
             "3",
         ],
-        "need verification",
+        "needs verification",
     );
     assert_fails(
         &[
@@ -549,9 +549,12 @@ fn bad_search_options_are_errors() {
     let (b0, b4) = (s(&b0), s(&b4));
     assert_fails(
         &["register", b0, b4, "--search", "greedy"],
-        "unknown mode 'greedy'",
+        "--search: setting search: unknown variant `greedy`",
     );
-    assert_fails(&["register", b0, b4, "--precision", "f16"], "unknown 'f16'");
+    assert_fails(
+        &["register", b0, b4, "--precision", "f16"],
+        "unknown variant `f16`",
+    );
     assert_fails(
         &[
             "register",
@@ -562,11 +565,11 @@ fn bad_search_options_are_errors() {
             "--coarse-factor",
             "0.5",
         ],
-        "coarse factor",
+        "--coarse-factor: setting coarse_factor: must be a number ≥ 1, got 0.5",
     );
     assert_fails(
         &["register", b0, b4, "--search", "c2f", "--coarse-keep", "2"],
-        "keep fraction",
+        "--coarse-keep: setting coarse_keep: must be in [0, 1], got 2",
     );
 }
 
@@ -625,9 +628,14 @@ fn report_is_one_self_contained_page_written_atomically() {
         "Hypotheses",
         "Quality",
         "Time per stage",
+        "Settings",
     ] {
         assert!(html.contains(section), "{section}");
     }
+    assert!(
+        html.contains("<td><code>max_hypotheses</code></td><td>32</td>"),
+        "the settings in force"
+    );
     assert!(
         html.contains("First look: the coarse level's best 16 rotations"),
         "the first look's line"

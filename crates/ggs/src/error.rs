@@ -35,6 +35,14 @@ pub enum GgsError {
     /// A parameter is out of its valid range.
     #[error("invalid parameter {name}: {message}")]
     InvalidParameter { name: &'static str, message: String },
+    /// A setting given in a settings file, on the command line or as a keyword argument is
+    /// unknown, of the wrong kind or out of its range: `origin` says where it was given.
+    #[error("{origin}: setting {key}: {message}")]
+    Setting {
+        origin: String,
+        key: String,
+        message: String,
+    },
     /// The search would need more memory than the budget allows.
     #[error("{0}")]
     MemoryBudget(String),

@@ -8,15 +8,16 @@
 //!
 //! The pipeline, one module per stage:
 //! [`io`] → [`cloud`] → [`rotations`] → [`coarse`] (voxelization, FFT correlation, the
-//! search) → [`pipeline`] (verification of the hypotheses) → [`refine`], composed by
-//! [`register`] (which every front end calls), with [`metrics`] for evaluation.
+//! search) → [`pipeline`] (verification of the hypotheses) → [`refine`], configured by one
+//! flat [`Settings`] ([`settings`]: the presets, settings files, every key) and run by
+//! [`register`], which every front end calls; [`metrics`] for evaluation.
 //!
 //! ```no_run
-//! use ggs::{io, pipeline::VoxelSize, register, RegistrationConfig};
+//! use ggs::{io, register, Settings};
 //! let source = io::read_cloud("source.ply".as_ref(), None)?.cloud;
 //! let target = io::read_cloud("target.ply".as_ref(), None)?.cloud;
-//! let cfg = RegistrationConfig { voxel: VoxelSize::Fixed(0.005), ..RegistrationConfig::default() };
-//! let result = register(&source, &target, &cfg)?;
+//! let settings = Settings { voxel: Some(0.005), ..Settings::default() };
+//! let result = register(&source, &target, &settings)?;
 //! println!("{}confidence {:.2}", result.transform.to_text(), result.confidence);
 //! # Ok::<(), ggs::GgsError>(())
 //! ```
@@ -39,6 +40,7 @@ pub mod refine;
 pub mod render;
 pub mod rng;
 pub mod rotations;
+pub mod settings;
 pub mod simd;
 pub mod spacing;
 pub mod thin;
@@ -51,5 +53,6 @@ pub mod test_rng;
 
 pub use cloud::{Cloud, Point};
 pub use error::{GgsError, Location, Result};
-pub use pipeline::{register, Registration, RegistrationConfig};
+pub use pipeline::{Registration, RegistrationConfig};
+pub use settings::{register, Runtime, Settings};
 pub use transform::Rigid;

@@ -581,11 +581,11 @@ fn coarse_to_fine_parameters_are_checked() {
 /// counts the rotations it is asked to score.
 mod second_backend {
     use ggs::coarse::correlator::{
-        Backend, BestOffset, Correlator, CpuBackend, PassControl, RotatedSources, Scores,
-        StageTimes,
+        Backend, BestOffset, Correlator, PassControl, RotatedSources, Scores, StageTimes,
     };
     use ggs::coarse::geometry::Geometry;
     use ggs::coarse::voxel::Occupancy;
+    use ggs::coarse::CpuBackend;
     use std::sync::atomic::{AtomicUsize, Ordering};
     use std::sync::Arc;
 

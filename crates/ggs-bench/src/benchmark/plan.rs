@@ -2,11 +2,12 @@
 //! run ([`Plan`]), validated once here for every front end (`ggs bench`, `ggs.bench.run` in
 //! Python, whichever executor runs the pairs).
 
+use super::config::{BenchVoxel, RunConfig};
+use super::pair::{missing_files, BenchPair};
+use super::protocol::Protocol;
 use super::shard::{Shard, ShardFile};
-use super::{missing_files, BenchPair, BenchVoxel, Protocol, RunConfig};
 use ggs::error::{GgsError, Result};
-use ggs::pipeline::RegistrationConfig;
-use ggs::rotations::RotationSet;
+use ggs::Settings;
 use std::path::PathBuf;
 
 /// Which pairs to run and the protocol's thresholds, as a user gives them.
@@ -48,13 +49,14 @@ pub struct Plan {
 }
 
 impl Plan {
-    /// Resolve `sel` with the pipeline `pipeline`; `paper_rotations`: use the protocol's own
-    /// rotation set of the paper (`--preset paper` with no rotation set given). Errors name
-    /// what is wrong: an unknown protocol, a missing directory, an empty selection, the first
-    /// missing files.
+    /// Resolve `sel` with `settings` on `threads` worker threads per pair; `paper_rotations`:
+    /// use the protocol's own rotation set of the paper (`--preset paper` with no rotation set
+    /// given). Errors name what is wrong: bad settings, an unknown protocol, a missing
+    /// directory, an empty selection, the first missing files.
     pub fn new(
         sel: &Selection,
-        pipeline: RegistrationConfig,
+        settings: Settings,
+        threads: usize,
         paper_rotations: bool,
     ) -> Result<Plan> {
         let protocol = Protocol::from_name(&sel.protocol, sel.manifest.as_deref())?;
@@ -75,13 +77,17 @@ impl Plan {
             ));
         }
         check_files(&pairs, protocol.name())?;
-        let mut pipeline = pipeline;
+        let mut settings = settings;
         if paper_rotations {
-            pipeline.rotations = RotationSet::named(defaults.paper_rotations)?;
+            settings.rotations = defaults.paper_rotations.to_string();
         }
+        // Bad settings are refused before any pair runs.
+        settings.plan(threads)?;
         let cfg = RunConfig {
             voxel: sel.voxel,
-            pipeline,
+            settings,
+            threads,
+            cancel: None,
             max_rre_deg: sel.max_rre_deg.unwrap_or(defaults.max_rre_deg),
             max_rte: sel.max_rte.or(defaults.max_rte),
             default_voxel: defaults.voxel,

@@ -12,7 +12,7 @@
 //!
 //! In every protocol the ground truth `T` maps the source into the target's frame.
 
-use super::{BenchPair, CloudRef};
+use super::pair::{BenchPair, CloudRef};
 use ggs::error::{GgsError, Result};
 use ggs::transform::Rigid;
 use std::collections::{HashMap, HashSet};

@@ -8,10 +8,13 @@
 //! order and writes `results.json`, `summary.md`, `recall.svg` and the final `report.html`:
 //! the same files whichever executor ran the pairs, apart from the `*_ms` timings.
 
+use super::config::{pin_json, RunConfig};
+use super::execute::{run_pair_pictured, RunOutcome};
+use super::finish::finish_run;
+use super::html;
 use super::plan::Plan;
 use super::row::{header, PairRow, ResultsCsv};
 use super::shard::write_shard_file;
-use super::{html, pin_json, report, run_pair_pictured, RunConfig, RunOutcome};
 use ggs::error::{GgsError, Result};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -177,38 +180,11 @@ fn save_picture(path: &Path, png: &[u8]) -> Result<()> {
     ggs::io::write_atomic(path, png)
 }
 
-/// Write the files of a finished run from its rows: `results.json` (summary and rows),
-/// `summary.md`, `recall.svg` and `report.html`, each atomically.
-pub(crate) fn finish_run(
-    name: &str,
-    rows: &[PairRow],
-    metres: bool,
-    out: &Path,
-) -> Result<report::Summary> {
-    let summary = report::Summary::of(name, rows);
-    let json = serde_json::json!({ "summary": &summary, "pairs": rows });
-    let write = |file: &str, text: String| ggs::io::write_atomic(&out.join(file), text.as_bytes());
-    write(
-        "results.json",
-        serde_json::to_string_pretty(&json).expect("rows serialize") + "\n",
-    )?;
-    write("summary.md", summary.markdown(rows, metres))?;
-    write("recall.svg", report::recall_curves_svg(name, rows))?;
-    let ctx = html::ReportContext {
-        protocol: name,
-        total_pairs: rows.len(),
-        metres,
-        out,
-    };
-    html::write_report(&ctx, rows)?;
-    Ok(summary)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::benchmark::plan::Selection;
-    use ggs::pipeline::{Preset, RegistrationConfig};
+    use ggs::Settings;
 
     /// A manifest of the bundled small pair three times under other names.
     fn plan(dir: &Path) -> Plan {
@@ -227,11 +203,79 @@ mod tests {
             manifest: Some(manifest),
             ..Selection::default()
         };
-        let mut cfg = RegistrationConfig::preset(Preset::Default);
-        cfg.threads = 1;
-        cfg.verify = None;
-        cfg.refine = None;
-        Plan::new(&sel, cfg, false).unwrap()
+        let settings = Settings {
+            verify: false,
+            refine: None,
+            ..Settings::default()
+        };
+        Plan::new(&sel, settings, 1, false).unwrap()
+    }
+
+    /// `settings` with `key` changed to another valid value.
+    fn changed(settings: &Settings, key: &str) -> Settings {
+        let mut fields = settings.to_json();
+        let before = fields[key].clone();
+        let candidates: Vec<serde_json::Value> = match &before {
+            serde_json::Value::Bool(b) => vec![(!b).into()],
+            serde_json::Value::Number(n) => match n.as_u64() {
+                Some(k) => vec![(k + 1).into()],
+                None => vec![(n.as_f64().unwrap() + 1.0).into()],
+            },
+            serde_json::Value::Null => vec![1.into()],
+            serde_json::Value::String(_) => [
+                "limited15",
+                "exhaustive",
+                "f64",
+                "fitness",
+                "p2p",
+                "huber:1",
+            ]
+            .map(serde_json::Value::from)
+            .to_vec(),
+            other => panic!("{key}: unexpected {other}"),
+        };
+        for value in candidates {
+            fields[key] = value;
+            if let Ok(s) = serde_json::from_value::<Settings>(fields.clone()) {
+                if s != *settings {
+                    return s;
+                }
+            }
+        }
+        panic!("no other value for {key}")
+    }
+
+    #[test]
+    fn changing_any_one_setting_refuses_a_resume_and_the_thread_count_does_not() {
+        let dir = std::env::temp_dir().join(format!("ggs-run-json-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        let plan = plan(&dir);
+        check_run_config(&dir, &plan.cfg, plan.name, false).unwrap();
+        let other_threads = RunConfig {
+            threads: 7,
+            ..plan.cfg.clone()
+        };
+        check_run_config(&dir, &other_threads, plan.name, true).unwrap();
+        let keys: Vec<String> = plan
+            .cfg
+            .settings
+            .to_json()
+            .as_object()
+            .unwrap()
+            .keys()
+            .cloned()
+            .collect();
+        assert!(keys.len() > 40, "{keys:?}");
+        for key in keys {
+            let cfg = RunConfig {
+                settings: changed(&plan.cfg.settings, &key),
+                ..plan.cfg.clone()
+            };
+            let e = check_run_config(&dir, &cfg, plan.name, true);
+            assert!(e.is_err(), "a change of {key} resumed the run");
+        }
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     fn without_ms(path: &Path) -> Vec<String> {

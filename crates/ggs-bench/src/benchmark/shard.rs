@@ -9,9 +9,11 @@
 //! `run.json`; a shard is resumed like any run, and [`merge`] refuses shards of different
 //! configurations, missing or repeated shards and shards that are not finished.
 
+use super::config::pin_json;
+use super::execute::RunOutcome;
+use super::finish::finish_run;
+use super::pair::BenchPair;
 use super::row::{PairRow, ResultsCsv};
-use super::run_dir::finish_run;
-use super::{BenchPair, RunOutcome};
 use ggs::error::{GgsError, Result};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -68,7 +70,7 @@ pub struct ShardFile {
 /// Write `out/shard.json`, or check that the one there (a resumed shard) is the same.
 pub fn write_shard_file(out: &Path, file: &ShardFile) -> Result<()> {
     std::fs::create_dir_all(out).map_err(|e| GgsError::io(out, e))?;
-    super::pin_json(
+    pin_json(
         &out.join("shard.json"),
         file,
         "this run directory holds another shard or another selection of pairs; choose another --out",

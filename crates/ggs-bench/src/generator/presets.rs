@@ -12,7 +12,7 @@
 //! Euler 'xyz' is the extrinsic convention of SciPy (lower case): rotate about x by α, then
 //! about the fixed y by β, then about the fixed z by γ, so `R = R_z(γ)·R_y(β)·R_x(α)`.
 
-use super::rng::Rng;
+use ggs::rng::Rng;
 use ggs::transform::Rigid;
 use nalgebra::{Matrix3, Vector3};
 

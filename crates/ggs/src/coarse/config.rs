@@ -132,7 +132,7 @@ impl CoarseToFine {
 }
 
 /// Arithmetic of the correlations; both give the same picks.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Precision {
     /// f32 transforms with a proven error bound for every rotation, then an exact
@@ -203,23 +203,23 @@ pub fn round_2_digits(x: f64) -> f64 {
 
 impl CoarseToFine {
     /// Refuses a factor below 1, a fraction outside [0, 1] and a negative neighbour angle.
-    pub(super) fn validate(&self) -> Result<()> {
+    pub(crate) fn validate(&self) -> Result<()> {
         if !(self.factor.is_finite() && self.factor >= 1.0) {
             return Err(GgsError::param(
-                "coarse factor",
+                "coarse_factor",
                 format!("must be a number ≥ 1, got {}", self.factor),
             ));
         }
         if !(self.keep_fraction.is_finite() && (0.0..=1.0).contains(&self.keep_fraction)) {
             return Err(GgsError::param(
-                "keep fraction",
+                "coarse_keep",
                 format!("must be in [0, 1], got {}", self.keep_fraction),
             ));
         }
         if let Some(d) = self.neighbour_deg {
             if !(d.is_finite() && d >= 0.0) {
                 return Err(GgsError::param(
-                    "neighbour angle",
+                    "coarse_neighbour",
                     format!("must be a non-negative number of degrees, got {d}"),
                 ));
             }

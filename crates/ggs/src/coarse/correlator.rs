@@ -3,7 +3,7 @@
 //!
 //! The search (`coarse_register_with`) only talks to these two traits: which rotations to
 //! score, at which voxel, exactly or approximately. A GPU backend implements them without
-//! touching the search; the CPU backend is [`CpuBackend`] (`passes.rs`).
+//! touching the search; the CPU backend is [`CpuBackend`](super::passes::CpuBackend) (`passes.rs`).
 //!
 //! The contract a backend must keep, which the search's exactness rests on:
 //! - [`Correlator::exact`] returns, for each rotation, the largest match score over all
@@ -22,8 +22,6 @@ use crate::error::Result;
 use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 use std::time::Duration;
-
-pub use super::passes::CpuBackend;
 
 /// Best offset of one rotation: its match score `m` and the offset `a` (cells).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -5,7 +5,7 @@ use super::config::{Precision, SearchConfig};
 use super::correlator::{Backend, Correlator, PassControl, Scores};
 use super::extents::{geometry_for, rotated_boxes, RotatedBox};
 use super::levels::kept_with_neighbours;
-use super::register::{ms, Prepared};
+use super::prepared::{ms, Prepared};
 use super::result::{CoarseLevel, Hypothesis, SearchResult, SearchStats, Timings};
 use super::selection::{exact_best, rescore_exact, LevelScores, Tally};
 use super::voxel::Occupancy;

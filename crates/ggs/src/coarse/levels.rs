@@ -4,7 +4,7 @@
 use super::config::{CoarseToFine, SearchConfig};
 use super::correlator::{ApproxBest, Backend, PassControl, RotatedSources, Scores, StageTimes};
 use super::extents::{geometry_for, rotated_boxes, target_kernel, RotatedBox};
-use super::register::Prepared;
+use super::prepared::Prepared;
 use super::result::{CoarseLevel, LevelHypothesis};
 use super::rotated::RotatableCloud;
 use crate::cloud::{Cloud, Point};

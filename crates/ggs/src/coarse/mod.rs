@@ -52,6 +52,7 @@ pub mod grid_view;
 pub mod levels;
 mod memory_model;
 pub mod passes;
+mod prepared;
 mod register;
 pub mod result;
 pub mod rotated;
@@ -69,7 +70,8 @@ pub use config::{
     auto_voxel, round_2_digits, CoarseToFine, Precision, ProgressFn, SearchConfig, SearchMode,
     COARSE_LEVEL_HYPOTHESES,
 };
-pub use correlator::{Backend, Correlator, CpuBackend, Scores};
+pub use correlator::{Backend, Correlator, Scores};
+pub use passes::CpuBackend;
 pub use register::{coarse_register, coarse_register_with};
 pub use result::{CoarseLevel, Hypothesis, LevelHypothesis, SearchResult, SearchStats, Timings};
 pub use source::{representatives, MIN_POINTS_PER_REPRESENTATIVE, REPRESENTATIVE_DIVISIONS};

@@ -12,7 +12,7 @@ use super::correlator::{Backend, PassControl};
 use super::extents::target_kernel;
 use super::fine::{FineLevel, Picks};
 use super::levels::coarse_candidates;
-use super::register::{ms, validate, Prepared};
+use super::prepared::{ms, validate, Prepared};
 use super::result::{CoarseLevel, SearchResult, Timings};
 use super::selection::Tally;
 use crate::cloud::Cloud;
@@ -208,7 +208,7 @@ impl Search<'_, '_> {
 mod tests {
     use super::*;
     use crate::coarse::config::CoarseToFine;
-    use crate::coarse::correlator::CpuBackend;
+    use crate::coarse::passes::CpuBackend;
     use crate::coarse::source::tests::plane;
     use crate::coarse::{coarse_register, SearchConfig};
     use crate::transform::Rigid;

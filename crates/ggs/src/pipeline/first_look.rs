@@ -52,8 +52,8 @@
 //! the wrong answers' chosen poses verify at 0.29 at most, the right ones of high-overlap
 //! pairs at 0.5 to 0.9.
 
+use super::verified::Verification;
 use super::verify::VerifyConfig;
-use super::Verification;
 
 /// When to stop after the first look (see the module documentation).
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]

@@ -129,7 +129,7 @@ pub struct VerifyConfig {
 }
 
 /// How a point within `D` of the other cloud counts in the verification score.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum VerifyScore {
     /// `w(d) = 1`: the share of points within `D` (Open3D's fitness).
@@ -188,8 +188,8 @@ impl Default for VerifyConfig {
 }
 
 impl VerifyConfig {
-    /// Every setting in its range, else an error that names it: the one check every front
-    /// end (the CLI, Python, a library caller) gets from [`super::register`].
+    /// Every setting in its range, else an error that names it by its settings key
+    /// ([`crate::Settings`]): the one check of these ranges, run by [`super::register`].
     pub fn validate(&self) -> Result<()> {
         let fraction = |name: &'static str, v: f64| {
             if v.is_finite() && (0.0..=1.0).contains(&v) {
@@ -211,18 +211,27 @@ impl VerifyConfig {
         if self.max_hypotheses == 0 {
             return Err(GgsError::param("max_hypotheses", "must be at least 1"));
         }
+        if self.max_iterations < self.check_iterations {
+            return Err(GgsError::param(
+                "verify_iterations",
+                format!(
+                    "must be at least verify_check_iterations ({}), got {}",
+                    self.check_iterations, self.max_iterations
+                ),
+            ));
+        }
         fraction("margin", self.margin)?;
         fraction("reject_ratio", self.reject_ratio)?;
         fraction("ambiguous_ratio", self.ambiguous_ratio)?;
         fraction("free_space_tolerance", self.free_space_tolerance)?;
         for (name, v) in [
-            ("distance_voxels", self.distance_voxels),
-            ("spacing_factor", self.spacing_factor),
-            ("scan_distance_fraction", self.scan_distance_fraction),
-            ("cell_voxels", self.cell_voxels),
-            ("fine_cell_voxels", self.fine_cell_voxels),
+            ("verify_distance_voxels", self.distance_voxels),
+            ("verify_distance_spacings", self.spacing_factor),
+            ("verify_distance_range", self.scan_distance_fraction),
+            ("verify_cell", self.cell_voxels),
+            ("verify_fine_cell", self.fine_cell_voxels),
             ("free_space_weight", self.free_space_weight),
-            ("free_space_margin_voxels", self.free_space_margin_voxels),
+            ("free_space_margin", self.free_space_margin_voxels),
         ] {
             non_negative(name, v)?;
         }
@@ -754,7 +763,7 @@ mod tests {
                     scan_distance_fraction: -1.0,
                     ..d()
                 },
-                "scan_distance_fraction",
+                "verify_distance_range",
             ),
             (
                 VerifyConfig {

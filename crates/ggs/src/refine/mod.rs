@@ -106,6 +106,18 @@ impl RobustKernel {
     }
 }
 
+impl std::fmt::Display for RobustKernel {
+    /// The form [`str::parse`] reads: `none`, `huber:K`, `cauchy:K`, `geman-mcclure:K`.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            RobustKernel::None => write!(f, "none"),
+            RobustKernel::Huber(k) => write!(f, "huber:{k}"),
+            RobustKernel::Cauchy(k) => write!(f, "cauchy:{k}"),
+            RobustKernel::GemanMcClure(k) => write!(f, "geman-mcclure:{k}"),
+        }
+    }
+}
+
 impl std::str::FromStr for RobustKernel {
     type Err = GgsError;
     /// `none`, `huber:K`, `cauchy:K` or `geman-mcclure:K` (K > 0, cloud units).
