@@ -9,7 +9,7 @@ A Rust file imports another when it names it by a `crate::`, `super::` or `self:
 names it by `ggs::`. Modules are files: `src/a/b.rs` and
 `src/a/b/mod.rs` are `a::b`. Test modules (`#[cfg(test)] mod tests` and `tests/`) are left
 out: tests may reach anywhere. A loop is a strongly connected set of files or of top-level
-modules. The layers (LAYERS below) are the architecture section of the README: a module may
+modules. The layers (LAYERS below) are those of docs/architecture.md: a module may
 import its own layer and those below it, never one above.
 
 Functions are measured from their `fn` line to the closing brace, comments included.
@@ -22,7 +22,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 
-# Bottom to top; the README's architecture section lists the same layers.
+# Bottom to top; docs/architecture.md lists the same layers.
 LAYERS = [
     ["error", "threads", "simd", "rng", "memory", "order", "num"],
     ["transform", "cloud", "spacing", "thin", "mesh", "test_rng"],

@@ -511,7 +511,7 @@ def _python_blocks(markdown):
     return re.findall(r"```python\n(.*?)```", markdown.read_text(), flags=re.S)
 
 
-@pytest.mark.parametrize("doc", ["README.md", "python/README.md"])
+@pytest.mark.parametrize("doc", ["README.md", "python/README.md", "docs/settings.md"])
 def test_readme_examples_run_as_written(doc, monkeypatch):
     blocks = _python_blocks(ROOT / doc)
     assert blocks, doc

@@ -3,6 +3,7 @@
 use crate::pipeline_args::PipelineArgs;
 use anyhow::Result;
 use clap::Args;
+use std::path::PathBuf;
 
 #[derive(Args)]
 pub struct SettingsArgs {
@@ -12,16 +13,25 @@ pub struct SettingsArgs {
     /// out).
     #[arg(long)]
     pub json: bool,
+    /// Write the settings to this file (atomically) instead of printing them.
+    #[arg(short, long, value_name = "FILE")]
+    pub out: Option<PathBuf>,
 }
 
 pub fn run(args: SettingsArgs) -> Result<()> {
     let (preset, settings) = args.pipeline.settings(|_| {})?;
-    if args.json {
-        outln!("{}", serde_json::to_string_pretty(&settings.to_json())?);
+    let text = if args.json {
+        serde_json::to_string_pretty(&settings.to_json())? + "\n"
     } else {
-        outln!("# ggs settings: the {} preset and the changes given; every key is documented in docs/settings.md", preset.name());
-        outln!("preset = \"{}\"", preset.name());
-        outln!("{}", settings.to_toml().trim_end());
+        format!(
+            "# ggs settings: the {0} preset and the changes given; every key is in docs/settings.md\npreset = \"{0}\"\n{1}\n",
+            preset.name(),
+            settings.to_toml().trim_end()
+        )
+    };
+    match &args.out {
+        Some(path) => ggs::io::write_atomic(path, text.as_bytes())?,
+        None => out!("{text}"),
     }
     Ok(())
 }

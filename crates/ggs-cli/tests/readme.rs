@@ -1,5 +1,5 @@
-//! Every `ggs …` command of the README's shell examples runs as written from the root of a
-//! bare clone: in a scratch folder that holds a link to the repository's `tests/` (so
+//! Every `ggs …` command of the shell examples of the README, docs/cli.md and
+//! docs/settings.md runs as written from the root of a bare clone: in a scratch folder that holds a link to the repository's `tests/` (so
 //! `tests/data/...` resolve and `runs/...` outputs stay out of the checkout), in order, each
 //! exiting with status 0. The `cargo` and `pip` lines are the build, test and install
 //! commands that `.ci/run` runs itself.
@@ -30,8 +30,12 @@ fn shell_lines(markdown: &str) -> Vec<String> {
 #[test]
 fn readme_examples_run_as_written() {
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..");
-    let readme = std::fs::read_to_string(root.join("README.md")).unwrap();
-    let lines = shell_lines(&readme);
+    let mut lines = Vec::new();
+    for doc in ["README.md", "docs/cli.md", "docs/settings.md"] {
+        lines.extend(shell_lines(
+            &std::fs::read_to_string(root.join(doc)).unwrap(),
+        ));
+    }
     let ggs_lines: Vec<&String> = lines.iter().filter(|l| l.starts_with("ggs ")).collect();
     assert!(ggs_lines.len() >= 8, "{lines:?}");
     for l in &lines {
