@@ -14,7 +14,7 @@ summary() {
     "$1" register "$2" "$3" --threads 2 --json -q "${@:4}" | python3 -c '
 import json, sys
 j = json.load(sys.stdin)
-r = j["result"]
+r = j["search"]
 t = [round(x, 6) for row in j["transform"] for x in row]
 print(r["rotation_index"], r["offset"], r["score"], j["chosen_rank"], t[0:12:5])'
 }

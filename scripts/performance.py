@@ -69,11 +69,11 @@ def main():
         (f"generated {name}", hsrc, htgt, "0.06", "ico162-s10"),
     ]
     stages = [("read", lambda d: d["read_ms"]),
-              ("target", lambda d: d["result"]["timings"]["target_ms"]),
-              ("extents", lambda d: d["result"]["timings"]["extents_ms"]),
-              ("coarse level", lambda d: d["result"]["timings"]["coarse_level_ms"]),
-              ("search", lambda d: d["result"]["timings"]["search_ms"]),
-              ("coarse total", lambda d: d["result"]["timings"]["total_ms"]),
+              ("target", lambda d: d["search"]["timings"]["target_ms"]),
+              ("extents", lambda d: d["search"]["timings"]["extents_ms"]),
+              ("coarse level", lambda d: d["search"]["timings"]["coarse_level_ms"]),
+              ("search", lambda d: d["search"]["timings"]["search_ms"]),
+              ("coarse total", lambda d: d["search"]["timings"]["total_ms"]),
               ("GICP", lambda d: d["refine"]["total_ms"]),
               ("total", lambda d: d["total_ms"])]
     cpu = ["cpu_voxelize_ms", "cpu_forward_ms", "cpu_product_ms", "cpu_inverse_ms"]
@@ -95,10 +95,10 @@ def main():
                 rss.append(mb)
                 transforms.add(json.dumps(d["coarse_transform"]))
             med = lambda f: statistics.median(f(d) for d in rows)
-            r = rows[0]["result"]
-            fft_cpu = med(lambda d: sum(d["result"]["timings"][k] for k in cpu[1:])) * 1e-3
+            r = rows[0]["search"]
+            fft_cpu = med(lambda d: sum(d["search"]["timings"][k] for k in cpu[1:])) * 1e-3
             cells = [f"{med(f):.0f}" for _, f in stages]
-            cpus = "/".join(f"{med(lambda d, k=k: d['result']['timings'][k]):.0f}" for k in cpu)
+            cpus = "/".join(f"{med(lambda d, k=k: d['search']['timings'][k]):.0f}" for k in cpu)
             lines.append(
                 f"| {pname} | {mode} | " + " | ".join(cells)
                 + f" | {cpus} | {r['scored']} of {r['rotations']} | {r['rescored']} | {r['fft_gflop']:.2f}"

@@ -72,17 +72,26 @@ class Result:
     """The outcome of :func:`register` or :func:`refine`; picklable, and ``to_dict()`` gives
     every field as plain Python and numpy values."""
 
-    def __init__(self, fields: Dict[str, Any]) -> None:
-        self._report = fields.pop("_report", None)
-        self._fields = fields
+    def __init__(self, document: Dict[str, Any], report: Any = None) -> None:
+        self._document = document
+        self._fields = _fields_of(document)
+        self._report = report
 
     def __getstate__(self) -> Dict[str, Any]:
         # The report's display samples stay behind: an unpickled Result has no report.
-        return {"_fields": self._fields}
+        return {"_document": self._document}
 
     def __setstate__(self, state: Dict[str, Any]) -> None:
-        self._fields = state["_fields"]
+        self._document = state["_document"]
+        self._fields = _fields_of(self._document)
         self._report = None
+
+    @property
+    def document(self) -> Dict[str, Any]:
+        """The result as ``ggs register --json`` prints it (``format``
+        ``"ggs-registration/1"``; ``"ggs-refinement/1"`` for :func:`refine`): every field
+        of the run, nested as docs/cli.md, "The JSON result" describes. A deep copy."""
+        return copy.deepcopy(self._document)
 
     def report_html(
         self,
@@ -239,6 +248,79 @@ class Result:
                 parts.append(f"{key}={v:.4g}" if isinstance(v, float) else f"{key}={v}")
         rows = np.array2string(f["transformation"], precision=6, suppress_small=True)
         return f"ggs.Result({', '.join(parts)},\n  transformation=\n{rows})"
+
+
+def _matrix(rows: Any) -> Matrix4:
+    return np.array(rows, dtype=np.float64)
+
+
+def _verified_of(verification: Optional[Dict[str, Any]]) -> List[Dict[str, Any]]:
+    """The verified hypotheses of a document, one flat dict each."""
+    if verification is None:
+        return []
+    out = []
+    for k, h in enumerate(verification["hypotheses"]):
+        e = h["evidence"]
+        out.append({
+            "rank": h["rank"], "rotation_index": h["rotation_index"],
+            "match_score": h["match_score"], "polished_match_score": h["polished_match_score"],
+            "score": e["score"], "fitness_source": e["fitness_source"],
+            "fitness_target": e["fitness_target"], "iterations": h["iterations"],
+            "rejected_early": h["rejected_early"], "at_a_glance": h["at_a_glance"],
+            "evidence_points": e["points"],
+            "free_space_violations": e.get("free_space_violations"),
+            "level": h["level"], "settled": h["settled"], "same_as": h["same_as"],
+            "screened": h["screened"], "chosen": k == verification["chosen"],
+            "runner_up": k == verification["runner_up"],
+            "coarse_transformation": _matrix(h["coarse_transform"]),
+            "transformation": _matrix(h["transform"]),
+        })  # fmt: skip
+    return out
+
+
+def _fields_of(doc: Dict[str, Any]) -> Dict[str, Any]:
+    """The flat fields of :class:`Result`, read from a result's document: every key present
+    in every mode, None (or 0.0 for a time) where a stage did not run."""
+    refined: Optional[Dict[str, Any]] = doc.get("refine")
+    q = refined["report"] if refined else None
+    search = doc.get("search")
+    winner = search["hypotheses"][0] if search else None
+    t = (search or {}).get("timings", {})
+    report = {"method": refined["method"], **refined["report"]} if refined else None
+    return {
+        "transformation": _matrix(doc["transform"]),
+        "fitness": q and q["fitness_source"],
+        "fitness_target": q and q["fitness_target"],
+        "inlier_rmse": q and q["inlier_rmse"],
+        "converged": q and q["converged"],
+        "report": report,
+        "coarse_transformation": _matrix(doc["coarse_transform"]) if search else None,
+        "score": winner and winner["score"],
+        "ambiguity": search and search["ambiguity"],
+        "rotation_index": winner and winner["rotation_index"],
+        "voxel": doc.get("voxel"),
+        "confidence": doc.get("confidence"),
+        "ambiguous": doc.get("ambiguous"),
+        "chosen_rank": doc.get("chosen_rank"),
+        "warnings": list(doc.get("warnings", [])),
+        "hypotheses": [
+            {**{k: h[k] for k in ("rotation_index", "score", "match_score", "offset")},
+             "transformation": _matrix(h["transform"])}
+            for h in (search["hypotheses"] if search else [])
+        ],  # fmt: skip
+        "verified": _verified_of(doc.get("verification")),
+        "first_look": doc.get("first_look"),
+        "timings": {
+            "coarse_ms": t.get("total_ms", 0.0),
+            "target_ms": t.get("target_ms", 0.0),
+            "extents_ms": t.get("extents_ms", 0.0),
+            "search_ms": t.get("search_ms", 0.0),
+            "verify_ms": doc["timings"]["verify_ms"] if search else 0.0,
+            "refine_ms": refined["total_ms"] if refined else 0.0,
+            "total_ms": doc["total_ms"],
+        },
+        "settings": doc.get("settings"),
+    }
 
 
 def _warn(result: Result) -> Result:
@@ -400,14 +482,14 @@ def register(
         neighbors=neighbors,
         refine_cell=refine_cell,
     )
-    fields = _ggs.register(
+    document, report = _ggs.register(
         as_points(source, "source"),
         as_points(target, "target"),
         options,
         matrices,
         progress,
     )
-    return _warn(Result(fields))
+    return _warn(Result(json.loads(document), report))
 
 
 def refine(
@@ -440,14 +522,14 @@ def refine(
         "kernel": kernel,
     }
     changes = {k: v for k, v in given.items() if v is not None}
-    fields = _ggs.refine(
+    document = _ggs.refine(
         as_points(source, "source"),
         as_points(target, "target"),
         np.ascontiguousarray(init, dtype=np.float64),
         json.dumps(changes, default=_plain),
         _threads(threads),
     )
-    return _warn(Result(fields))
+    return _warn(Result(json.loads(document)))
 
 
 PairLike = Tuple[Union[PointsLike, StrPath], Union[PointsLike, StrPath]]

@@ -37,14 +37,14 @@ def register(
     options: Dict[str, Any],
     rotation_matrices: Optional[npt.NDArray[np.float64]] = None,
     progress: Optional[Callable[[int, int], None]] = None,
-) -> Dict[str, Any]: ...
+) -> Tuple[str, Report]: ...
 def refine(
     source: npt.NDArray[Any],
     target: npt.NDArray[Any],
     init: npt.NDArray[np.float64],
     changes: str,
     threads: int,
-) -> Dict[str, Any]: ...
+) -> str: ...
 def settings(options: Dict[str, Any]) -> str: ...
 def read_point_cloud(
     path: str,

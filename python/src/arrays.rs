@@ -117,11 +117,6 @@ pub fn rotations_of(name: &str, obj: &Bound<'_, PyAny>) -> PyResult<RotationSet>
         .map_err(|m| PyValueError::new_err(format!("{name}: {m}")))
 }
 
-pub fn matrix_array<'py>(py: Python<'py>, t: &Rigid) -> PyResult<Bound<'py, PyAny>> {
-    let flat: Vec<f64> = t.to_rows().concat();
-    Ok(PyArray1::from_vec(py, flat).reshape([4, 4])?.into_any())
-}
-
 pub fn points_array<'py>(py: Python<'py>, pts: &[Point]) -> PyResult<Bound<'py, PyAny>> {
     let flat: Vec<f64> = pts.iter().flat_map(|p| p.iter().copied()).collect();
     Ok(PyArray1::from_vec(py, flat)

@@ -14,7 +14,6 @@ mod io;
 mod metrics;
 mod registration;
 mod report;
-mod result;
 
 use ggs::pipeline::Preset;
 use pyo3::prelude::*;

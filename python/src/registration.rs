@@ -5,14 +5,12 @@
 use crate::arrays::{matrix_of, points_of, rotations_of, to_py_err};
 use crate::interrupt::{run_interruptible, Progress};
 use crate::report;
-use crate::result::result_dict;
-use ggs::pipeline::{self, Preset};
+use ggs::pipeline::{self, Preset, RefinementDocument, RegistrationDocument};
 use ggs::refine;
 use ggs::settings::{Changes, SettingsFile};
 use ggs::{Cloud, Settings};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
-use pyo3::types::PyDict;
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::Arc;
@@ -76,7 +74,8 @@ pub(crate) fn settings(options: Options) -> PyResult<String> {
     Ok(s.to_json().to_string())
 }
 
-/// Register `source` onto `target` (the pipeline); returns the result as a dict.
+/// Register `source` onto `target` (the pipeline); returns the result's document
+/// ([`RegistrationDocument`], JSON) and its report page.
 #[pyfunction]
 #[pyo3(signature = (source, target, options, rotation_matrices=None, progress=None))]
 pub(crate) fn register<'py>(
@@ -86,11 +85,11 @@ pub(crate) fn register<'py>(
     options: Options,
     rotation_matrices: Option<&Bound<'py, PyAny>>,
     progress: Option<Py<PyAny>>,
-) -> PyResult<Bound<'py, PyDict>> {
+) -> PyResult<(String, report::Report)> {
     let t0 = Instant::now();
     let source = Cloud::new(points_of("source", source)?);
     let target = Cloud::new(points_of("target", target)?);
-    let (_, mut settings) = options.settings()?;
+    let (preset, mut settings) = options.settings()?;
     let mut cfg = settings.plan(options.threads).map_err(to_py_err)?;
     if let Some(m) = rotation_matrices {
         let set = rotations_of("rotations", m)?;
@@ -117,21 +116,19 @@ pub(crate) fn register<'py>(
     .map_err(to_py_err)?;
     reg.settings = Some(settings.to_json());
     let total_ms = t0.elapsed().as_secs_f64() * 1e3;
-    let d = result_dict(
-        py,
-        &reg.transform,
-        Some(&reg),
-        reg.refine.as_ref(),
-        total_ms,
-    )?;
+    let doc = RegistrationDocument {
+        preset: Some(preset.name()),
+        ..RegistrationDocument::new(&reg, total_ms)
+    };
+    let text = serde_json::to_string(&doc).expect("a registration serializes");
     let mut inner = ggs::html::registration::RegistrationReport::new(&source, &target, reg);
     inner.total_ms = Some(total_ms);
-    d.set_item("_report", report::Report { inner })?;
-    Ok(d)
+    Ok((text, report::Report { inner }))
 }
 
 /// Refine `init` by ICP with the reference GICP's settings (the paper preset's) changed by
-/// `changes` (a JSON object of settings keys); returns the result as a dict.
+/// `changes` (a JSON object of settings keys); returns the result's document
+/// ([`RefinementDocument`], JSON).
 #[pyfunction(name = "refine")]
 #[pyo3(signature = (source, target, init, changes, threads))]
 pub(crate) fn refine_py<'py>(
@@ -141,7 +138,7 @@ pub(crate) fn refine_py<'py>(
     init: &Bound<'py, PyAny>,
     changes: String,
     threads: usize,
-) -> PyResult<Bound<'py, PyDict>> {
+) -> PyResult<String> {
     let t0 = Instant::now();
     let source = Cloud::new(points_of("source", source)?);
     let target = Cloud::new(points_of("target", target)?);
@@ -157,5 +154,6 @@ pub(crate) fn refine_py<'py>(
     })?
     .map_err(to_py_err)?;
     let total_ms = t0.elapsed().as_secs_f64() * 1e3;
-    result_dict(py, &r.transform, None, Some(&r), total_ms)
+    let doc = RefinementDocument::new(init, &r, total_ms);
+    Ok(serde_json::to_string(&doc).expect("a refinement serializes"))
 }

@@ -311,8 +311,15 @@ def test_equals_the_cli_bit_for_bit():
     r = ggs.register(ggs.read_point_cloud(src), ggs.read_point_cloud(tgt), voxel=0.005, threads=2)
     assert r.transformation.tolist() == cli["transform"]
     assert r.coarse_transformation.tolist() == cli["coarse_transform"]
-    assert r.score == cli["result"]["score"]
+    assert r.score == cli["search"]["score"]
     assert r.fitness == cli["refine"]["report"]["fitness_source"]
+    # One serialization: Python's document is the CLI's, less what only a process knows.
+    doc = r.document
+    assert list(doc) == list(cli) and doc["format"] == "ggs-registration/1"
+    skip = {"source", "target", "timings", "search", "refine", "read_ms", "total_ms", "peak_memory_bytes"}
+    for key in set(cli) - skip:
+        assert doc[key] == cli[key], key
+    assert doc["search"]["hypotheses"] == cli["search"]["hypotheses"]
 
 
 def test_open3d_example():

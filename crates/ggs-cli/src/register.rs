@@ -8,7 +8,10 @@ use clap::Args;
 use ggs::coarse;
 use ggs::html::registration::RegistrationReport;
 use ggs::io::{self, ReadOptions};
-use ggs::pipeline::{self, Preset, Registration, RegistrationConfig, Verification};
+use ggs::pipeline::{
+    self, Preset, RefinementDocument, Registration, RegistrationConfig, RegistrationDocument,
+    Verification,
+};
 use ggs::refine;
 use ggs::rotations::RotationSet;
 use ggs::settings::{Changes, Settings};
@@ -256,8 +259,8 @@ fn command_line() -> String {
         .join(" ")
 }
 
-/// The `--json` document: the inputs, the answer, the search, the verification, the
-/// refinement and the times.
+/// The `--json` document ([`RegistrationDocument`]): the registration with the files, the
+/// preset and the times of the whole call.
 fn print_json(
     args: &RegisterArgs,
     preset: Preset,
@@ -265,31 +268,14 @@ fn print_json(
     read_ms: f64,
     total_ms: f64,
 ) -> Result<()> {
-    let out = serde_json::json!({
-        "source": args.source,
-        "target": args.target,
-        "preset": preset.name(),
-        "settings": reg.settings,
-        "voxel": reg.voxel,
-        "voxel_auto": reg.voxel_rule.is_some(),
-        "voxel_rule": reg.voxel_rule,
-        "transform": reg.transform.to_rows(),
-        "coarse_transform": reg.coarse_transform.to_rows(),
-        "chosen_rank": reg.chosen_rank,
-        "confidence": reg.confidence,
-        "ambiguous": reg.ambiguous,
-        "warnings": reg.warnings,
-        "result": reg.search,
-        "first_look": reg.first_look,
-        "verification": reg.verification,
-        "refine": reg.refine,
-        "refine_cell": reg.refine_cell,
-        "timings": reg.timings,
-        "read_ms": read_ms,
-        "total_ms": total_ms,
-        "peak_memory_bytes": ggs::memory::peak_resident(),
-    });
-    outln!("{}", serde_json::to_string_pretty(&out)?);
+    let doc = RegistrationDocument {
+        source: Some(args.source.display().to_string()),
+        target: Some(args.target.display().to_string()),
+        preset: Some(preset.name()),
+        read_ms: Some(read_ms),
+        ..RegistrationDocument::new(reg, total_ms)
+    };
+    outln!("{}", doc.to_json());
     Ok(())
 }
 
@@ -570,6 +556,7 @@ fn peak_memory_note() -> String {
 }
 
 pub fn run_refine(args: RefineArgs) -> Result<()> {
+    let t0 = Instant::now();
     let format = args.io.input.options()?;
     // The reference GICP's settings (the paper preset's), changed by the flags.
     let mut flags = Changes::new("command line");
@@ -584,14 +571,12 @@ pub fn run_refine(args: RefineArgs) -> Result<()> {
     let r = refine::refine(&source, &target, &init, &cfg)?;
     write_outputs(&args.io, &source, &r.transform)?;
     if args.io.json {
-        let out = serde_json::json!({
-            "source": args.source,
-            "target": args.target,
-            "init": init.to_rows(),
-            "transform": r.transform.to_rows(),
-            "refine": r,
-        });
-        outln!("{}", serde_json::to_string_pretty(&out)?);
+        let doc = RefinementDocument {
+            source: Some(args.source.display().to_string()),
+            target: Some(args.target.display().to_string()),
+            ..RefinementDocument::new(init, &r, t0.elapsed().as_secs_f64() * 1e3)
+        };
+        outln!("{}", doc.to_json());
     } else {
         out!("{}", r.transform.to_text());
         outln!();

@@ -52,8 +52,8 @@ fn distinct_radius_spaces_the_hypotheses() {
     for radius in [10.0, 60.0] {
         let text = radius.to_string();
         let j = small(&["--no-verify", "--top-k", "6", "--distinct-radius", &text]);
-        assert_eq!(j["result"]["distinct_radius_deg"], radius);
-        let hyps = j["result"]["hypotheses"].as_array().unwrap();
+        assert_eq!(j["search"]["distinct_radius_deg"], radius);
+        let hyps = j["search"]["hypotheses"].as_array().unwrap();
         assert!(hyps.len() >= 3, "{radius}: {} hypotheses", hyps.len());
         for (i, a) in hyps.iter().enumerate() {
             for b in &hyps[i + 1..] {
@@ -103,9 +103,9 @@ fn verify_score_tight_weighs_closeness_fitness_counts_the_points_within_d() {
 fn dedup_drops_the_duplicates_of_a_set() {
     let all = small(&["--no-verify", "--rotations", "hopf15"]);
     let dedup = small(&["--no-verify", "--rotations", "hopf15", "--dedup", "0.5"]);
-    assert_eq!(all["result"]["rotations"], 6912);
+    assert_eq!(all["search"]["rotations"], 6912);
     // hopf15's duplicates are exact: removing them gives hopf15-dedup's 6360.
-    assert_eq!(dedup["result"]["rotations"], 6360);
+    assert_eq!(dedup["search"]["rotations"], 6360);
 }
 
 #[test]
@@ -136,10 +136,10 @@ fn max_iterations_caps_the_refinement() {
 fn coarse_keep_min_keeps_at_least_that_many_rotations() {
     let default = small(&["--no-verify"]);
     // 1 % of hopf15-id's 6360 rotations, rounded up.
-    assert_eq!(default["result"]["coarse_level"]["kept"], 64);
+    assert_eq!(default["search"]["coarse_level"]["kept"], 64);
     let more = small(&["--no-verify", "--coarse-keep-min", "200"]);
-    assert_eq!(more["result"]["mode"]["keep_min"], 200);
-    assert_eq!(more["result"]["coarse_level"]["kept"], 200);
+    assert_eq!(more["search"]["mode"]["keep_min"], 200);
+    assert_eq!(more["search"]["coarse_level"]["kept"], 200);
 }
 
 #[test]
@@ -149,8 +149,8 @@ fn coarse_hypotheses_adds_the_coarse_levels_own_poses_to_the_verified() {
         hs.iter().map(|h| s_of(&h["level"])).collect()
     };
     let default = small(&[]);
-    assert_eq!(default["result"]["mode"]["hypotheses"], 8);
-    let reported = default["result"]["coarse_level"]["hypotheses"]
+    assert_eq!(default["search"]["mode"]["hypotheses"], 8);
+    let reported = default["search"]["coarse_level"]["hypotheses"]
         .as_array()
         .unwrap();
     assert_eq!(reported.len(), 8);
@@ -177,7 +177,7 @@ fn coarse_hypotheses_adds_the_coarse_levels_own_poses_to_the_verified() {
         }
     }
     let none = small(&["--coarse-hypotheses", "0"]);
-    assert!(none["result"]["coarse_level"]["hypotheses"]
+    assert!(none["search"]["coarse_level"]["hypotheses"]
         .as_array()
         .unwrap()
         .is_empty());
@@ -241,7 +241,7 @@ fn fingerprint(j: &Value) -> Value {
     serde_json::json!({
         "transform": j["transform"],
         "verified": j["verification"]["hypotheses"],
-        "coarse": j["result"]["hypotheses"],
+        "coarse": j["search"]["hypotheses"],
         "refine": j["refine"]["report"],
     })
 }

@@ -31,10 +31,12 @@
 //! [`VerifyConfig::ambiguous_ratio`] of each other.
 
 mod config;
+pub mod document;
 pub mod first_look;
 pub mod free_space;
 mod hypotheses;
 pub mod polish;
+mod registration;
 mod verified;
 pub mod verify;
 
@@ -46,12 +48,14 @@ use crate::transform::{rotation_angle_deg, Rigid};
 pub use config::{
     FinalStage, Preset, RegistrationConfig, VoxelSize, AUTO_VOXEL_CELLS, AUTO_VOXEL_SPACINGS,
 };
+pub use document::{RefinementDocument, RegistrationDocument};
 pub use first_look::{FirstLook, FirstLookReport};
 use hypotheses::{
     maybe_polished, prepare_pair, verify_hypotheses, FirstStages, VerifyInputs, VerifyPass,
     VerifyReady,
 };
 pub use polish::PolishConfig;
+pub use registration::{Registration, StageTimes};
 use std::time::Instant;
 pub use verified::{
     HypothesisLevel, Verification, VerifiedHypothesis, SAME_POSE_DEG, SAME_POSE_VOXELS,
@@ -68,49 +72,6 @@ const LOW_EVIDENCE: f64 = 0.1;
 pub const FREE_SPACE_WARNING: f64 = 1.5;
 
 pub use crate::spacing::point_spacing;
-
-/// Wall times of the stages, milliseconds.
-#[derive(Debug, Clone, Copy, Default, serde::Serialize)]
-pub struct StageTimes {
-    pub search_ms: f64,
-    pub verify_ms: f64,
-    pub refine_ms: f64,
-    pub total_ms: f64,
-}
-
-/// The outcome of [`register`].
-#[derive(Debug, Clone, serde::Serialize)]
-pub struct Registration {
-    /// The final transform, `p_target = T · p_source`.
-    #[serde(serialize_with = "crate::transform::serialize_rows")]
-    pub transform: Rigid,
-    /// The chosen hypothesis's grid transform (before polish and ICP).
-    #[serde(serialize_with = "crate::transform::serialize_rows")]
-    pub coarse_transform: Rigid,
-    pub voxel: f64,
-    /// How the voxel was chosen automatically (`None`: it was given).
-    pub voxel_rule: Option<String>,
-    /// Rank of the chosen hypothesis among the coarse search's (0: its winner).
-    pub chosen_rank: usize,
-    /// `1 − runner-up / chosen` verification score (or `1 −` the coarse ambiguity), in [0, 1].
-    pub confidence: f64,
-    /// Two distinct poses verify (or, unverified, score) about equally well.
-    pub ambiguous: bool,
-    /// What a user should know: ambiguity, low evidence.
-    pub warnings: Vec<String>,
-    pub search: SearchResult,
-    /// What the first look did (`None`: it did not run).
-    pub first_look: Option<FirstLookReport>,
-    pub verification: Option<Verification>,
-    pub refine: Option<RefineResult>,
-    /// Cell edge (cloud units) of the clouds the final refinement ran on; 0: full resolution.
-    pub refine_cell: f64,
-    pub timings: StageTimes,
-    /// The settings in force, serialized ([`crate::Settings`]); `None` for a run configured
-    /// by a [`RegistrationConfig`] alone.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub settings: Option<serde_json::Value>,
-}
 
 fn ms(t: Instant) -> f64 {
     t.elapsed().as_secs_f64() * 1e3
@@ -160,22 +121,23 @@ fn starting_pose(
     })
 }
 
+/// Refuses out-of-range stage settings and empty clouds before any work.
+fn validate(source: &Cloud, target: &Cloud, cfg: &RegistrationConfig) -> Result<()> {
+    if let Some(v) = &cfg.verify {
+        v.validate()?;
+    }
+    cfg.final_stage.validate()?;
+    source.ensure_not_empty("source")?;
+    target.ensure_not_empty("target")
+}
+
 fn register_in_pool(
     source: &Cloud,
     target: &Cloud,
     cfg: &RegistrationConfig,
 ) -> Result<Registration> {
     let t0 = Instant::now();
-    if let Some(v) = &cfg.verify {
-        v.validate()?;
-    }
-    cfg.final_stage.validate()?;
-    source.ensure_not_empty("source")?;
-    target.ensure_not_empty("target")?;
-    let refine_cfg = cfg.refine.map(|r| RefineConfig {
-        threads: cfg.threads,
-        ..r
-    });
+    validate(source, target, cfg)?;
     // The point spacing serves the voxel rule and the verification distance.
     let target_spacing = std::sync::OnceLock::new();
     let spacing_of_target = || *target_spacing.get_or_init(|| point_spacing(target));
@@ -192,16 +154,7 @@ fn register_in_pool(
     let clouds = (source, target);
     let (started, (ready, prepared_final)) = rayon::join(
         || start_search(&prepared, source, target, cfg, &search, first_look.as_ref()),
-        || {
-            beside_search(
-                clouds,
-                voxel,
-                &spacing_of_target,
-                cfg,
-                refine_cfg,
-                first_look,
-            )
-        },
+        || beside_search(clouds, voxel, &spacing_of_target, cfg, first_look),
     );
     let (running, first) = started?;
     let mut search_ms = ms(t0);
@@ -224,14 +177,7 @@ fn register_in_pool(
         starting_pose(source, target, &coarse, verification.as_ref(), &search, cfg)?;
     let verify_ms = ms(t_verify) - rest_ms;
     let t_refine = Instant::now();
-    let refined = match (&refine_cfg, prepared_final) {
-        (Some(r), pair) => {
-            let pair =
-                pair.unwrap_or_else(|| final_pair(source, target, voxel, r, cfg.final_stage));
-            Some(refine_final(&pair?, &start, r, cfg.final_stage)?)
-        }
-        (None, _) => None,
-    };
+    let refined = refine_chosen(clouds, voxel, cfg, prepared_final, &start)?;
     let refine_ms = ms(t_refine);
     let (confidence, ambiguous, warnings) = assess(&coarse, verification.as_ref(), cfg);
     coarse.hypotheses.truncate(cfg.search.top_k.max(1));
@@ -335,9 +281,9 @@ fn beside_search(
     voxel: f64,
     spacing: &(dyn Fn() -> f64 + Sync),
     cfg: &RegistrationConfig,
-    refine_cfg: Option<RefineConfig>,
     look: Option<FirstLook>,
 ) -> (Option<Result<VerifyReady>>, Option<Result<PreparedPair>>) {
+    let refine_cfg = final_refine_config(cfg);
     let icp = refine_cfg.unwrap_or(RefineConfig {
         threads: cfg.threads,
         ..RefineConfig::default()
@@ -358,6 +304,31 @@ fn beside_search(
         },
         || thinned_final_pair(source, target, voxel, refine_cfg.as_ref(), cfg),
     )
+}
+
+/// The final refinement's parameters on the pipeline's threads (`None`: no refinement).
+fn final_refine_config(cfg: &RegistrationConfig) -> Option<RefineConfig> {
+    cfg.refine.map(|r| RefineConfig {
+        threads: cfg.threads,
+        ..r
+    })
+}
+
+/// The final refinement of `start` (`None` without one), on the pair prepared beside the
+/// search when there is one.
+fn refine_chosen(
+    (source, target): (&Cloud, &Cloud),
+    voxel: f64,
+    cfg: &RegistrationConfig,
+    prepared: Option<Result<PreparedPair>>,
+    start: &Rigid,
+) -> Result<Option<RefineResult>> {
+    let Some(r) = final_refine_config(cfg) else {
+        return Ok(None);
+    };
+    let pair =
+        prepared.unwrap_or_else(|| final_pair(source, target, voxel, &r, cfg.final_stage))?;
+    Ok(Some(refine_final(&pair, start, &r, cfg.final_stage)?))
 }
 
 /// The first look of `cfg`, where it applies: a coarse-to-fine search whose hypotheses are
