@@ -3,20 +3,14 @@
 
 mod common;
 
-use common::{data, ggs, s, tmp_dir};
+use common::{data, ggs, ggs_json, s, tmp_dir};
 use serde_json::Value;
 
 /// `ggs register SOURCE TARGET --json -q` plus `extra`, parsed.
 fn run(source: &str, target: &str, extra: &[&str]) -> Value {
     let mut args = vec!["register", source, target, "--json", "-q"];
     args.extend_from_slice(extra);
-    let out = ggs(&args);
-    assert!(
-        out.status.success(),
-        "{args:?}: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    serde_json::from_slice(&out.stdout).unwrap()
+    ggs_json(&args)
 }
 
 /// The bundled PCL pair at its voxel, plus `extra`.

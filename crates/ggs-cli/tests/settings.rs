@@ -4,20 +4,14 @@
 
 mod common;
 
-use common::{assert_fails, data, ggs, s, tmp_dir};
+use common::{assert_fails, data, ggs, ggs_json, s, tmp_dir};
 use serde_json::Value;
 
 /// `ggs settings --json` plus `extra`, parsed.
 fn settings(extra: &[&str]) -> Value {
     let mut args = vec!["settings", "--json"];
     args.extend_from_slice(extra);
-    let out = ggs(&args);
-    assert!(
-        out.status.success(),
-        "{args:?}: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    serde_json::from_slice(&out.stdout).unwrap()
+    ggs_json(&args)
 }
 
 /// A value as the help and docs/settings.md show it.

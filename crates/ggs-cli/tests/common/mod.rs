@@ -19,6 +19,17 @@ pub fn ggs(args: &[&str]) -> Output {
         .expect("run ggs")
 }
 
+/// `ggs ARGS`, which must succeed, its standard output parsed as JSON.
+pub fn ggs_json(args: &[&str]) -> serde_json::Value {
+    let out = ggs(args);
+    assert!(
+        out.status.success(),
+        "{args:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).unwrap()
+}
+
 /// `ggs ARGS` exits with status 2 and a message on stderr that contains `needle`, without
 /// a panic.
 pub fn assert_fails(args: &[&str], needle: &str) {

@@ -56,15 +56,6 @@ fn read_ply_chunked<S: PointStore, R: BufRead + Send>(
     })?;
     let h = parse_header(path, &header)?;
     let vi = vertex_element(path, &h)?;
-    let row_size = |e: &Element| -> Option<usize> {
-        e.props
-            .iter()
-            .map(|p| match p {
-                Property::Scalar(t, _) => Some(t.size()),
-                Property::List(..) => None,
-            })
-            .sum()
-    };
     if h.encoding == Encoding::Ascii && h.elements[vi].scalars_only() {
         let xyz = xyz_properties(path, &h, vi)?;
         return read_ascii_streamed::<S, _>(path, r, &h, vi, &xyz, file_len);
@@ -75,38 +66,10 @@ fn read_ply_chunked<S: PointStore, R: BufRead + Send>(
         stream::read_rest(path, r, &mut header, file_len)?;
         return Ok(S::from_vec(parse_ply(path, &header)?));
     }
-    let mut pos = h.data_start as u64;
-    for e in &h.elements[..vi] {
-        let len = (row_size(e).unwrap_or(0) as u64)
-            .checked_mul(e.count as u64)
-            .ok_or_else(|| {
-                GgsError::at_byte(
-                    path,
-                    pos,
-                    format!(
-                        "element '{}': {} rows overflow the file size",
-                        e.name, e.count
-                    ),
-                )
-            })?;
-        stream::skip(path, r, pos, len, &format!("element '{}'", e.name))?;
-        pos += len;
-    }
+    let pos = skip_to_vertices(path, r, &h, vi)?;
     let el = &h.elements[vi];
     let stride = row_size(el).unwrap_or(0);
-    let xyz = xyz_properties(path, &h, vi)?;
-    let mut offsets = [(0usize, Scalar::F32); 3];
-    for (d, &pi) in xyz.iter().enumerate() {
-        let off: usize = el.props[..pi]
-            .iter()
-            .map(|p| match p {
-                Property::Scalar(t, _) | Property::List(t, _, _) => t.size(),
-            })
-            .sum();
-        if let Property::Scalar(t, _) = el.props[pi] {
-            offsets[d] = (off, t);
-        }
-    }
+    let offsets = xyz_offsets(el, &xyz_properties(path, &h, vi)?);
     let little = h.encoding == Encoding::BinaryLe;
     let room = file_len.map_or(1 << 20, |l| l.saturating_sub(pos) / stride.max(1) as u64);
     let (n, what) = (el.count as u64, "element 'vertex'");
@@ -122,6 +85,54 @@ fn read_ply_chunked<S: PointStore, R: BufRead + Send>(
         let f = |rec: &[u8]| offsets.map(|(o, t)| t.decode(&rec[o..], little));
         stream::read_records::<S, R>(path, r, pos, stride, n, what, chunk_bytes, f, room)
     }
+}
+
+/// Bytes in one row of `e`, when every property is a scalar (`None` with a list).
+fn row_size(e: &Element) -> Option<usize> {
+    e.props
+        .iter()
+        .map(|p| match p {
+            Property::Scalar(t, _) => Some(t.size()),
+            Property::List(..) => None,
+        })
+        .sum()
+}
+
+/// Skip the binary elements before the vertex element `vi` (all of fixed row size); the byte
+/// offset of its first row.
+fn skip_to_vertices<R: BufRead>(path: &Path, r: &mut R, h: &Header, vi: usize) -> Result<u64> {
+    let mut pos = h.data_start as u64;
+    for e in &h.elements[..vi] {
+        let len = (row_size(e).unwrap_or(0) as u64)
+            .checked_mul(e.count as u64)
+            .ok_or_else(|| {
+                let why = format!(
+                    "element '{}': {} rows overflow the file size",
+                    e.name, e.count
+                );
+                GgsError::at_byte(path, pos, why)
+            })?;
+        stream::skip(path, r, pos, len, &format!("element '{}'", e.name))?;
+        pos += len;
+    }
+    Ok(pos)
+}
+
+/// Byte offset and type of x, y and z (the properties `xyz`) within a row of `el`.
+fn xyz_offsets(el: &Element, xyz: &[usize; 3]) -> [(usize, Scalar); 3] {
+    let mut offsets = [(0usize, Scalar::F32); 3];
+    for (d, &pi) in xyz.iter().enumerate() {
+        let off: usize = el.props[..pi]
+            .iter()
+            .map(|p| match p {
+                Property::Scalar(t, _) | Property::List(t, _, _) => t.size(),
+            })
+            .sum();
+        if let Property::Scalar(t, _) = el.props[pi] {
+            offsets[d] = (off, t);
+        }
+    }
+    offsets
 }
 
 /// A little-endian f32 from 4 bytes, as f64.
