@@ -22,12 +22,17 @@
 //! # Ok::<(), ggs::GgsError>(())
 //! ```
 
+//! Cargo features, all on by default: `las` (LAS/LAZ), `e57` (E57 scans), `npz` (NumPy
+//! archives) and `report` (the HTML report, [`render::Image::png`]). With one off, reading or
+//! writing that format is an error that names the feature.
+
 // Grid and matrix code indexes several arrays with one axis variable; iterators would hide it.
 #![allow(clippy::needless_range_loop)]
 
 pub mod cloud;
 pub mod coarse;
 pub mod error;
+#[cfg(feature = "report")]
 pub mod html;
 pub mod io;
 pub mod memory;

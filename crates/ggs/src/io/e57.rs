@@ -10,24 +10,7 @@ use nalgebra::{Quaternion, UnitQuaternion, Vector3};
 use std::io::{Read, Seek};
 use std::path::Path;
 
-/// Which scans of an E57 file to read, and in which frame.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct E57Options {
-    /// Read only this scan (0-based); `None`: every scan, concatenated.
-    pub scan: Option<usize>,
-    /// Move each scan by its pose into the file's frame (true), or keep it in the scanner's
-    /// own frame (false).
-    pub apply_pose: bool,
-}
-
-impl Default for E57Options {
-    fn default() -> Self {
-        E57Options {
-            scan: None,
-            apply_pose: true,
-        }
-    }
-}
+pub use super::scans::E57Options;
 
 /// What a scan of an E57 file holds.
 #[derive(Debug, Clone, PartialEq)]
@@ -93,7 +76,7 @@ pub fn e57_scans<R: Read + Seek>(path: &Path, r: R) -> Result<Vec<E57ScanInfo>> 
 /// direction only) come back as NaN, so that [`crate::io::read_cloud`] drops and counts
 /// them.
 pub fn read_e57<R: Read + Seek>(path: &Path, mut r: R, opts: E57Options) -> Result<Vec<Point>> {
-    let file_len = super::las::stream_len(&mut r).map_err(|e| GgsError::io(path, e))?;
+    let file_len = super::stream::stream_len(&mut r).map_err(|e| GgsError::io(path, e))?;
     let mut reader = e57::E57Reader::new(r).map_err(|e| crate_error(path, "header", e))?;
     let clouds = reader.pointclouds();
     let chosen: Vec<usize> = match opts.scan {

@@ -2,6 +2,7 @@
 //! `laz` feature). Coordinates come back with each file's scale and offset applied, in f64.
 
 use super::stream;
+use super::stream::stream_len;
 use crate::cloud::{Point, PointStore};
 use crate::error::{GgsError, Result};
 use std::io::{Read, Seek, SeekFrom};
@@ -142,13 +143,6 @@ fn read_uncompressed<S: PointStore, R: Read + Seek + Send>(
         room,
     )
     .map(Some)
-}
-
-/// The length of a stream, which is left at its start.
-pub(crate) fn stream_len<R: Seek>(r: &mut R) -> std::io::Result<u64> {
-    let len = r.seek(SeekFrom::End(0))?;
-    r.seek(SeekFrom::Start(0))?;
-    Ok(len)
 }
 
 /// Size of an EVLR's header (before its data).

@@ -56,14 +56,18 @@ pub(crate) fn check_error<T: std::fmt::Debug>(
     assert_eq!(e.location(), Some(loc), "{s}");
 }
 
+#[cfg(feature = "e57")]
 pub mod e57;
 pub mod kitti;
+#[cfg(feature = "las")]
 pub mod las;
 pub mod mesh;
 pub mod npy;
+#[cfg(feature = "npz")]
 pub mod npz;
 pub mod pcd;
 pub mod ply;
+pub mod scans;
 pub mod stream;
 pub mod text;
 pub mod xyz;
@@ -161,7 +165,7 @@ pub struct ReadOptions {
     /// Force the format; `None`: magic bytes, then the extension.
     pub format: Option<Format>,
     /// E57: which scans, and whether their poses are applied.
-    pub e57: e57::E57Options,
+    pub e57: scans::E57Options,
     /// NPZ: the array to read (`None`: the array shaped like a cloud).
     pub npz_array: Option<String>,
     /// OBJ, STL and PLY meshes: sample this many points uniformly on the faces (seeded,
@@ -358,13 +362,18 @@ fn read_points<S: PointStore, R: BufRead + Seek + Send + Sync + 'static>(
         Format::Ply => return Ok((fmt, ply::read_ply_into::<S, R>(path, &mut r, Some(len))?)),
         Format::Pcd => return Ok((fmt, pcd::read_pcd_into::<S, R>(path, &mut r, Some(len))?)),
         Format::KittiBin => return Ok((fmt, kitti::read_kitti_into::<S, R>(path, &mut r, len)?)),
+        #[cfg(feature = "las")]
         Format::Las => return Ok((fmt, las::read_las_into::<S, R>(path, r)?)),
+        #[cfg(feature = "e57")]
         Format::E57 => e57::read_e57(path, r, opts.e57)?,
+        #[cfg(feature = "npz")]
         Format::Npz => npz::read_npz_points(path, r, opts.npz_array.as_deref())?,
         Format::Obj => sampled(path, opts, mesh::parse_obj(path, &read_all(path, r, len)?)?)?,
         Format::Stl => sampled(path, opts, mesh::parse_stl(path, &read_all(path, r, len)?)?)?,
         Format::Text => return Ok((fmt, xyz::read_xyz_into::<S, R>(path, r, Some(len))?)),
         Format::Npy => npy::points_of(path, &npy::parse_npy(path, &read_all(path, r, len)?)?)?,
+        #[cfg(not(all(feature = "las", feature = "e57", feature = "npz")))]
+        other => return Err(not_built(path, other)),
     };
     Ok((fmt, S::from_vec(points)))
 }
@@ -394,13 +403,31 @@ pub fn write_cloud(
             npy::write_npy_f64(path, points.len(), 3, &flat)
         }
         Format::KittiBin => kitti::write_kitti_bin(path, points),
+        #[cfg(feature = "las")]
         Format::Las => las::write_las(path, points),
+        #[cfg(feature = "e57")]
         Format::E57 => e57::write_e57(path, &[e57::E57Scan { points, pose: None }]),
         Format::Obj | Format::Stl | Format::Npz => Err(GgsError::UnknownFormat {
             path: path.to_path_buf(),
             what: format!("(meshes and .npz are read, not written; writable: {WRITABLE})"),
         }),
+        #[cfg(not(all(feature = "las", feature = "e57")))]
+        other => Err(not_built(path, other)),
     }
+}
+
+/// The error for a format whose support this build of ggs leaves out (a cargo feature off).
+#[cfg(not(all(feature = "las", feature = "e57", feature = "npz")))]
+fn not_built(path: &Path, format: Format) -> GgsError {
+    let (what, feature) = match format {
+        Format::Las => ("LAS/LAZ", "las"),
+        Format::E57 => ("E57", "e57"),
+        _ => (".npz", "npz"),
+    };
+    GgsError::in_file(
+        path,
+        format!("{what} support is not built into this ggs (cargo feature `{feature}`)"),
+    )
 }
 
 /// Colour of the target in an overlay: blue.

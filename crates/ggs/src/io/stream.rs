@@ -195,6 +195,14 @@ pub fn read_header<R: BufRead>(
     }
 }
 
+/// The length of a stream, which is left at its start (LAS and E57 read by seeking).
+#[cfg(any(feature = "las", feature = "e57"))]
+pub(crate) fn stream_len<R: std::io::Seek>(r: &mut R) -> std::io::Result<u64> {
+    let len = r.seek(std::io::SeekFrom::End(0))?;
+    r.seek(std::io::SeekFrom::Start(0))?;
+    Ok(len)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -13,6 +13,7 @@
 //! scan costs what a 200k-point one does. Rendering is sequential and deterministic.
 
 use crate::transform::Point;
+#[cfg(feature = "report")]
 use base64::Engine;
 use nalgebra::{Matrix3, SymmetricEigen, Vector3};
 
@@ -250,6 +251,7 @@ impl Image {
     }
 
     /// The picture as a PNG file (8-bit RGB, default compression).
+    #[cfg(feature = "report")]
     pub fn png(&self) -> Vec<u8> {
         let mut bytes = Vec::new();
         let mut encoder = png::Encoder::new(&mut bytes, self.width as u32, self.height as u32);
@@ -268,6 +270,7 @@ impl Image {
     }
 
     /// The PNG as a `data:` URL, for an `<img src>` inside a self-contained HTML page.
+    #[cfg(feature = "report")]
     pub fn data_url(&self) -> String {
         let b64 = base64::engine::general_purpose::STANDARD.encode(self.png());
         format!("data:image/png;base64,{b64}")
