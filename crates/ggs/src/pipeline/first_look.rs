@@ -24,7 +24,7 @@
 //!
 //! When none of its own poses (those at the voxel size) reaches the score threshold, the
 //! first look ends there, before the coarse level's; its checks compare with at least the
-//! threshold ([`super::verify::Bar`]). Where it does not settle the pair, the search goes on
+//! threshold ([`super::verify::RejectionThreshold`]). Where it does not settle the pair, the search goes on
 //! exactly as without the first look and the verification takes every hypothesis; the first
 //! look's ICP runs on its own poses are reused where a hypothesis starts from the same pose
 //! (and the first hypothesis's whole decision where both passes start from the same pose),

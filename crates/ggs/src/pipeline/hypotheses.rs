@@ -282,18 +282,18 @@ pub(super) fn verify_hypotheses(
         }
         VerifyPass::All => (todo.len(), 0.0),
     };
-    let decide = Decide {
+    let checks = RankedChecks {
         ready,
         v,
         poses: &poses,
         floor,
     };
     let mut out = Vec::new();
-    let firsts = decide.first_stages(inputs, cfg, &ready.thinned, &todo[..own], Some(stages))?;
-    decide.in_order(&todo[..own], firsts, Some(stages), &ready.thinned, &mut out)?;
+    let firsts = checks.first_stages(inputs, cfg, &ready.thinned, &todo[..own], Some(stages))?;
+    checks.in_order(&todo[..own], firsts, Some(stages), &ready.thinned, &mut out)?;
     if own < todo.len() && out.iter().any(|h| h.evidence.score >= floor) {
         let others = &todo[own..];
-        decide.alternatives(inputs, cfg, others, stages, &mut out)?;
+        checks.alternatives(inputs, cfg, others, stages, &mut out)?;
     }
     if matches!(pass, VerifyPass::All) {
         let finer = || {
@@ -334,7 +334,7 @@ pub(super) fn verify_hypotheses(
 }
 
 /// How a pass takes its decisions: on what, and against what floor.
-struct Decide<'r> {
+struct RankedChecks<'r> {
     ready: &'r VerifyReady,
     v: &'r VerifyConfig,
     poses: &'r PoseGap,
@@ -345,7 +345,7 @@ struct Decide<'r> {
     floor: f64,
 }
 
-impl Decide<'_> {
+impl RankedChecks<'_> {
     /// Every hypothesis's polish and first stage on `pair` depend on its start alone: they run
     /// side by side, or come from an earlier pass (`stages`, which keeps the new ones; `None`:
     /// neither taken nor kept, for a pair other than the verification's).
@@ -441,13 +441,13 @@ impl Decide<'_> {
                 .as_deref()
                 .and_then(|s| s.leader)
                 .filter(|(start, _)| rank == 0 && *start == h.transform);
-            let bar = verify::Bar {
+            let threshold = verify::RejectionThreshold {
                 best,
                 floor: self.floor,
             };
             let c = match leader {
                 Some((_, c)) => c,
-                None => verify::finish(first, pair, verifier, icp, v, bar, &known)?,
+                None => verify::finish(first, pair, verifier, icp, v, threshold, &known)?,
             };
             if let Some(stages) = stages.as_deref_mut().filter(|_| rank == 0) {
                 if !c.rejected_early {

@@ -154,14 +154,14 @@ fn register_in_pool(
     let clouds = (source, target);
     let (started, (ready, prepared_final)) = rayon::join(
         || start_search(&prepared, source, target, cfg, &search, first_look.as_ref()),
-        || beside_search(clouds, voxel, &spacing_of_target, cfg, first_look),
+        || prepare_alongside_search(clouds, voxel, &spacing_of_target, cfg, first_look),
     );
     let (running, first) = started?;
     let mut search_ms = ms(t0);
     // The first look's search ends here; completing it (below) counts as search too.
     let t_verify = Instant::now();
     let ready = ready.transpose()?;
-    let found = settle(
+    let found = search_and_verify(
         clouds,
         running,
         first,
@@ -207,7 +207,7 @@ fn register_in_pool(
 
 /// What the search and the verification found; `rest_ms`: the wall time of the search after
 /// the first look.
-struct Found {
+struct SearchAndVerification {
     coarse: SearchResult,
     verification: Option<Verification>,
     report: Option<FirstLookReport>,
@@ -216,7 +216,7 @@ struct Found {
 
 /// The first look's verification, and where it does not settle the pair, the rest of the
 /// search and the verification of every candidate (reusing the first look's ICP runs).
-fn settle(
+fn search_and_verify(
     (source, target): (&Cloud, &Cloud),
     running: Search<'_, '_>,
     first: Option<SearchResult>,
@@ -224,7 +224,7 @@ fn settle(
     look: Option<FirstLook>,
     search: &SearchConfig,
     cfg: &RegistrationConfig,
-) -> Result<Found> {
+) -> Result<SearchAndVerification> {
     let mut stages = FirstStages::default();
     let mut report = None;
     if let (Some(first), Some(look), Some(v), Some(ready)) =
@@ -238,7 +238,7 @@ fn settle(
         let verification = verify_hypotheses(&inputs, ready, cfg, v, pass, &mut stages)?;
         let judged = look.judge(&verification, first.stats.scored, v);
         if judged.accepted {
-            return Ok(Found {
+            return Ok(SearchAndVerification {
                 coarse: first,
                 verification: Some(verification),
                 report: Some(judged),
@@ -265,7 +265,7 @@ fn settle(
         }
         _ => None,
     };
-    Ok(Found {
+    Ok(SearchAndVerification {
         coarse,
         verification,
         report,
@@ -276,7 +276,7 @@ fn settle(
 /// What the verification (with the first look's screening cells) and a thinned final
 /// refinement start from, side by side (none where `cfg` has no verification or no thinned
 /// refinement); `spacing` gives the target's point spacing.
-fn beside_search(
+fn prepare_alongside_search(
     (source, target): (&Cloud, &Cloud),
     voxel: f64,
     spacing: &(dyn Fn() -> f64 + Sync),

@@ -582,11 +582,11 @@ pub fn check(
     known: &dyn Fn(&Rigid) -> Option<(usize, Evidence)>,
 ) -> Result<Checked> {
     let first = first_stage(thinned, start, refine_cfg, cfg)?;
-    let bar = Bar {
+    let rejection = RejectionThreshold {
         best: best_so_far,
         floor: 0.0,
     };
-    finish(first, thinned, verifier, refine_cfg, cfg, bar, known)
+    finish(first, thinned, verifier, refine_cfg, cfg, rejection, known)
 }
 
 /// What a hypothesis is checked against: `reject_ratio` × the larger of the best score so
@@ -595,7 +595,7 @@ pub fn check(
 /// score yet: the full score at the check is then not worth its cost, since the second run's
 /// score replaces it.
 #[derive(Debug, Clone, Copy)]
-pub struct Bar {
+pub struct RejectionThreshold {
     pub best: f64,
     pub floor: f64,
 }
@@ -606,7 +606,7 @@ pub struct Bar {
 /// The decision first glances at the evidence: a fixed random part of each sample
 /// ([`Verifier::glance`]; no glance when the samples are too small, nor when there is
 /// nothing to reject against). A hypothesis whose glance, raised by
-/// [`GLANCE_SIGMAS`] standard errors, still scores below `reject_ratio` × the [`Bar`] is
+/// [`GLANCE_SIGMAS`] standard errors, still scores below `reject_ratio` × the [`RejectionThreshold`] is
 /// rejected with the glance as its evidence (`points` says so), without the full sums. The
 /// glance is the mean of the same per-point weights over a part of the same points drawn
 /// at random. Measured on the 4167 checks of the generated FP-O-H and FP-O-M pairs (50 000
@@ -620,7 +620,7 @@ pub fn finish(
     verifier: &Verifier,
     refine_cfg: &RefineConfig,
     cfg: &VerifyConfig,
-    bar: Bar,
+    rejection: RejectionThreshold,
     known: &dyn Fn(&Rigid) -> Option<(usize, Evidence)>,
 ) -> Result<Checked> {
     let FirstStage { run: first } = first;
@@ -635,7 +635,7 @@ pub fn finish(
             same_as: Some(k),
         });
     }
-    let threshold = cfg.reject_ratio * bar.best.max(bar.floor);
+    let threshold = cfg.reject_ratio * rejection.best.max(rejection.floor);
     let goes_on = more_iterations(&first, cfg);
     let at_a_glance = (threshold > 0.0)
         .then(|| verifier.glance(&first.transform))
@@ -644,7 +644,7 @@ pub fn finish(
     // With no score to beat (the first hypothesis: a score is never below 0) and a second run
     // to come, the score at the check would decide nothing and be replaced: skipped, unless
     // a glance already put it below the floor.
-    let nothing_to_decide = bar.best <= 0.0 && goes_on && at_a_glance.is_none();
+    let nothing_to_decide = rejection.best <= 0.0 && goes_on && at_a_glance.is_none();
     if !nothing_to_decide {
         let evidence = at_a_glance.unwrap_or_else(|| verifier.evidence(&first.transform));
         let rejected = evidence.score < threshold;
