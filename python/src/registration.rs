@@ -5,7 +5,7 @@
 use crate::arrays::{matrix_of, points_of, rotations_of, to_py_err};
 use crate::interrupt::{run_interruptible, Progress};
 use crate::report;
-use ggs::pipeline::{self, Preset, RefinementDocument, RegistrationDocument};
+use ggs::pipeline::{Preset, RefinementDocument, RegistrationDocument};
 use ggs::refine;
 use ggs::settings::{Changes, SettingsFile};
 use ggs::{Cloud, Settings};
@@ -110,11 +110,10 @@ pub(crate) fn register<'py>(
         let done = p.done.clone();
         cfg.search.progress = Some(Arc::new(move |n| done.store(n, Ordering::Relaxed)));
     }
-    let mut reg = run_interruptible(py, &cancel, progress.as_ref(), || {
-        pipeline::register(&source, &target, &cfg)
+    let reg = run_interruptible(py, &cancel, progress.as_ref(), || {
+        ggs::settings::register_planned(&source, &target, &settings, &cfg)
     })?
     .map_err(to_py_err)?;
-    reg.settings = Some(settings.to_json());
     let total_ms = t0.elapsed().as_secs_f64() * 1e3;
     let doc = RegistrationDocument {
         preset: Some(preset.name()),

@@ -9,35 +9,13 @@ use ggs::settings::{Changes, Settings, SettingsFile};
 use serde_json::Value;
 use std::path::PathBuf;
 
-/// Flags that set one settings key each: (flag's argument id, key). Their help ends with the
+/// The flags whose argument id is not their settings key: (argument id, key). Every other
+/// flag whose id is a settings key sets that key ([`put`]); the help of both ends with the
 /// presets' values ([`with_preset_values`]).
-pub const FLAG_KEYS: &[(&str, &str)] = &[
-    ("voxel", "voxel"),
-    ("rotations", "rotations"),
+const RENAMED_FLAGS: [(&str, &str); 3] = [
     ("rotations_file", "rotations"),
-    ("dedup", "dedup"),
-    ("search", "search"),
-    ("precision", "precision"),
-    ("coarse_factor", "coarse_factor"),
-    ("coarse_keep", "coarse_keep"),
-    ("coarse_keep_min", "coarse_keep_min"),
-    ("coarse_hypotheses", "coarse_hypotheses"),
-    ("top_k", "top_k"),
-    ("distinct_radius", "distinct_radius"),
-    ("max_memory", "max_memory"),
     ("no_first_look", "first_look"),
     ("no_verify", "verify"),
-    ("max_hypotheses", "max_hypotheses"),
-    ("margin", "margin"),
-    ("verify_score", "verify_score"),
-    ("polish", "polish"),
-    ("refine", "refine"),
-    ("max_distance", "max_distance"),
-    ("distance_quantile", "distance_quantile"),
-    ("kernel", "kernel"),
-    ("max_iterations", "max_iterations"),
-    ("neighbors", "neighbors"),
-    ("refine_cell", "refine_cell"),
 ];
 
 /// The configuration of the pipeline, shared by `register` and `bench`: a preset, a settings
@@ -174,7 +152,7 @@ impl RefineOptions {
 }
 
 impl PipelineArgs {
-    /// The pipeline flags given, as changes (in the order of [`FLAG_KEYS`]).
+    /// The pipeline flags given, as changes.
     fn flag_changes(&self) -> Changes {
         let mut c = Changes::new("command line");
         put(&mut c, "rotations", &self.rotations);
@@ -239,17 +217,23 @@ pub fn with_preset_values(cli: clap::Command) -> clap::Command {
         other => other.to_string(),
     };
     let annotate = |mut command: clap::Command| {
-        for (id, key) in FLAG_KEYS {
-            if !command.get_arguments().any(|a| a.get_id() == *id) {
+        let ids: Vec<String> = command
+            .get_arguments()
+            .map(|a| a.get_id().to_string())
+            .collect();
+        for id in &ids {
+            let renamed = RENAMED_FLAGS.iter().find(|(from, _)| from == id);
+            let key = renamed.map_or(id.as_str(), |(_, key)| key);
+            if default.get(key).is_none() {
                 continue;
             }
-            let (d, p) = (show(&default[*key]), show(&paper[*key]));
+            let (d, p) = (show(&default[key]), show(&paper[key]));
             let values = if d == p {
                 format!("[setting {key}: {d}]")
             } else {
                 format!("[setting {key}: {d}; --preset paper: {p}]")
             };
-            command = command.mut_arg(*id, |a| {
+            command = command.mut_arg(id, |a| {
                 let help = a.get_help().map(|h| h.to_string()).unwrap_or_default();
                 a.help(format!("{help} {values}"))
             });

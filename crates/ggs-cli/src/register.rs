@@ -9,7 +9,7 @@ use ggs::coarse;
 use ggs::html::registration::RegistrationReport;
 use ggs::io::{self, ReadOptions};
 use ggs::pipeline::{
-    self, Preset, RefinementDocument, Registration, RegistrationConfig, RegistrationDocument,
+    Preset, RefinementDocument, Registration, RegistrationConfig, RegistrationDocument,
     Verification,
 };
 use ggs::refine;
@@ -194,10 +194,9 @@ pub fn run(args: RegisterArgs) -> Result<()> {
     let pb = crate::progress::bar(cfg.rotations.len(), "rotations", args.quiet);
     let pbc = pb.clone();
     cfg.search.progress = Some(Arc::new(move |n| pbc.set_position(n as u64)));
-    let result = pipeline::register(&source, &target, &cfg);
+    let result = ggs::settings::register_planned(&source, &target, &settings, &cfg);
     pb.finish_and_clear();
-    let mut reg = result?;
-    reg.settings = Some(settings.to_json());
+    let reg = result?;
     let final_t = reg.transform;
     write_outputs(&args.io, &source, &final_t)?;
     if let Some(path) = &args.overlay {

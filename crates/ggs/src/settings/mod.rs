@@ -23,4 +23,4 @@ mod serde_forms;
 
 pub use fields::{Runtime, SearchKind, Settings};
 pub use layers::{Changes, SettingsFile};
-pub use plan::{register, register_with};
+pub use plan::{register, register_planned, register_with};

@@ -257,7 +257,19 @@ pub fn register_with(
     let mut cfg = settings.plan(runtime.threads)?;
     cfg.search.progress = runtime.progress.clone();
     cfg.search.cancel = runtime.cancel.clone();
-    let mut reg = pipeline::register(source, target, &cfg)?;
+    register_planned(source, target, settings, &cfg)
+}
+
+/// Run `cfg`, the [`Settings::plan`] of `settings` with what a front end sets beside them (a
+/// progress callback sized to the rotation set, a rotation set given as matrices); the result
+/// echoes `settings`.
+pub fn register_planned(
+    source: &Cloud,
+    target: &Cloud,
+    settings: &Settings,
+    cfg: &RegistrationConfig,
+) -> Result<Registration> {
+    let mut reg = pipeline::register(source, target, cfg)?;
     reg.settings = Some(settings.to_json());
     Ok(reg)
 }
