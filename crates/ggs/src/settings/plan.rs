@@ -29,6 +29,10 @@ fn non_negative(key: &'static str, v: f64) -> Result<()> {
     check(v.is_finite() && v >= 0.0, key, "a number ≥ 0", v)
 }
 
+fn positive_fraction(key: &'static str, v: f64) -> Result<()> {
+    check(v > 0.0 && v <= 1.0, key, "in (0, 1]", v)
+}
+
 fn at_least_one(key: &'static str, n: usize) -> Result<()> {
     check(n >= 1, key, "at least 1", n)
 }
@@ -79,13 +83,7 @@ impl Settings {
     }
 
     fn validate_polish(&self) -> Result<()> {
-        let f = self.polish_step_fraction;
-        check(
-            f.is_finite() && f > 0.0 && f <= 1.0,
-            "polish_step_fraction",
-            "in (0, 1]",
-            f,
-        )?;
+        positive_fraction("polish_step_fraction", self.polish_step_fraction)?;
         at_least_one("polish_levels", self.polish_levels)
     }
 
@@ -93,13 +91,7 @@ impl Settings {
         if let Some(d) = self.max_distance {
             positive("max_distance", d)?;
         }
-        let q = self.distance_quantile;
-        check(
-            q.is_finite() && q > 0.0 && q <= 1.0,
-            "distance_quantile",
-            "in (0, 1]",
-            q,
-        )?;
+        positive_fraction("distance_quantile", self.distance_quantile)?;
         at_least_one("max_iterations", self.max_iterations)?;
         check(
             self.neighbors >= 3,
