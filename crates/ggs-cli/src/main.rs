@@ -14,6 +14,7 @@ macro_rules! outln {
     };
 }
 
+mod align;
 mod bench;
 mod files;
 mod partial;
@@ -38,6 +39,9 @@ struct Cli {
 enum Command {
     /// Register SOURCE onto TARGET: print T with p_target = T · p_source.
     Register(Box<register::RegisterArgs>),
+    /// Align many scans into one frame with no initial guess: poses, moved scans, a merged
+    /// model and a report.
+    Align(Box<align::AlignArgs>),
     /// Refine an initial transform (p_target = T · p_source) by ICP.
     Refine(Box<register::RefineArgs>),
     /// Read point-cloud files and print their format, points, bounds and read speed.
@@ -105,6 +109,7 @@ fn main() -> ExitCode {
         .init();
     let outcome = match cli.command {
         Command::Register(a) => register::run(*a),
+        Command::Align(a) => align::run(*a),
         Command::Refine(a) => register::run_refine(*a),
         Command::Rotations(a) => register::run_rotations(a),
         Command::Info(a) => files::run_info(a),

@@ -29,6 +29,7 @@
 // Grid and matrix code indexes several arrays with one axis variable; iterators would hide it.
 #![allow(clippy::needless_range_loop)]
 
+pub mod align;
 pub mod cloud;
 pub mod coarse;
 pub mod error;

@@ -68,6 +68,11 @@ pub struct FirstLook {
     /// thinned to cells of this many voxels (0: the verification's own cells); see
     /// "Screening the alternatives" in the module documentation.
     pub screen_cell_voxels: f64,
+    /// Where the first look does not settle the pair, stop there anyway and report its
+    /// choice, unsettled ([`FirstLookReport::accepted`] false), instead of running the whole
+    /// search: a quick try for a caller that has other pairs to try first (the alignment of
+    /// many scans).
+    pub stop_unsettled: bool,
 }
 
 impl Default for FirstLook {
@@ -77,6 +82,7 @@ impl Default for FirstLook {
             hypotheses: 4,
             accept_score: 0.5,
             screen_cell_voxels: 1.0,
+            stop_unsettled: false,
         }
     }
 }

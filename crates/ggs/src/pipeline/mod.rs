@@ -237,7 +237,7 @@ fn search_and_verify(
         let inputs = VerifyInputs::new(source, target, &first, search);
         let verification = verify_hypotheses(&inputs, ready, cfg, v, pass, &mut stages)?;
         let judged = look.judge(&verification, first.stats.scored, v);
-        if judged.accepted {
+        if judged.accepted || look.stop_unsettled {
             return Ok(SearchAndVerification {
                 coarse: first,
                 verification: Some(verification),

@@ -161,6 +161,19 @@ pub struct Settings {
     /// The final refinement stops when an update rotates by less than this (radians) and
     /// moves by less than this many source radii.
     pub refine_min_step: f64,
+    /// Aligning a set of scans (`ggs align`): a registration places a scan when at least
+    /// this share of its points then lie within 3 point spacings of the model.
+    pub align_min_overlap: f64,
+    /// … and its confidence (`1 − s₂/s₁`, the margin of the chosen pose over the runner-up)
+    /// is at least this.
+    pub align_min_confidence: f64,
+    /// The model of a quick try holds at most this many placed scans, those whose shape
+    /// descriptors are nearest to the scan's (a whole search's model holds every placed
+    /// scan).
+    pub align_model_scans: usize,
+    /// Registrations onto one model decided together (run in parallel by a parallel
+    /// executor; the result depends on this number, not on the executor).
+    pub align_batch: usize,
 }
 
 impl Settings {
@@ -231,6 +244,10 @@ impl Settings {
             gicp_epsilon: r.epsilon,
             refine_cell: stage.cell_voxels,
             refine_min_step: stage.min_step,
+            align_min_overlap: crate::align::DEFAULT_MIN_OVERLAP,
+            align_min_confidence: crate::align::DEFAULT_MIN_CONFIDENCE,
+            align_model_scans: crate::align::DEFAULT_MODEL_SCANS,
+            align_batch: 1,
         }
     }
 

@@ -66,6 +66,16 @@ impl Settings {
         self.verify_config().validate()?;
         self.validate_polish()?;
         self.validate_refinement()?;
+        positive_fraction("align_min_overlap", self.align_min_overlap)?;
+        let c = self.align_min_confidence;
+        check(
+            (0.0..=1.0).contains(&c),
+            "align_min_confidence",
+            "in [0, 1]",
+            c,
+        )?;
+        at_least_one("align_model_scans", self.align_model_scans)?;
+        at_least_one("align_batch", self.align_batch)?;
         self.final_stage().validate()
     }
 
@@ -215,6 +225,7 @@ impl Settings {
                 hypotheses: self.first_look_hypotheses,
                 accept_score: self.first_look_accept_score,
                 screen_cell_voxels: self.first_look_screen_cell,
+                stop_unsettled: false,
             }),
             final_stage: self.final_stage(),
             refine,

@@ -1,0 +1,220 @@
+//! `ggs align`: many scans into one frame, with no initial guess.
+
+use crate::files::{self, InputArgs};
+use anyhow::{bail, Context, Result};
+use clap::Args;
+use ggs::align::{AlignScan, Alignment, PlacementJob, PlacementOutcome};
+use ggs::settings::{Runtime, Settings};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+#[derive(Args)]
+pub struct AlignArgs {
+    /// Scans to align: files, or quoted patterns such as "scans/*.ply" (`*`, `?`, `[ab]`).
+    pub scans: Vec<String>,
+    /// A file listing scans, one path or pattern a line (relative to the list's folder;
+    /// blank lines and lines starting with # are skipped).
+    #[arg(long, value_name = "FILE")]
+    pub list: Option<PathBuf>,
+    /// Write poses.json, poses.txt, the scans moved into the common frame (scans/), the
+    /// merged model (model.ply) and report.html into this folder.
+    #[arg(long, value_name = "DIR")]
+    pub out: PathBuf,
+    /// The scan whose frame is the common frame (its name as given); default: the first.
+    #[arg(long, value_name = "NAME")]
+    pub anchor: Option<String>,
+    /// Voxel size of the registrations, in the scans' units (unset: automatic per
+    /// registration).
+    #[arg(long, allow_negative_numbers = true)]
+    pub voxel: Option<f64>,
+    #[command(flatten)]
+    pub pipeline: crate::pipeline_args::PipelineArgs,
+    /// Worker threads (default: all cores). The result does not depend on it.
+    #[arg(long, default_value_t = 0)]
+    pub threads: usize,
+    #[command(flatten)]
+    pub input: InputArgs,
+    /// Print the alignment as JSON on stdout (the content of poses.json).
+    #[arg(long)]
+    pub json: bool,
+    /// No progress bar and no warnings.
+    #[arg(short, long)]
+    pub quiet: bool,
+}
+
+/// The scan paths: the arguments, then the list's lines, each pattern expanded (sorted).
+fn scan_paths(args: &AlignArgs) -> Result<Vec<String>> {
+    let mut given: Vec<(String, String)> = args
+        .scans
+        .iter()
+        .map(|s| (s.clone(), "the command line".into()))
+        .collect();
+    if let Some(list) = &args.list {
+        let text = std::fs::read_to_string(list).with_context(|| list.display().to_string())?;
+        let dir = list.parent().unwrap_or(Path::new(""));
+        for (n, line) in text.lines().enumerate() {
+            let line = line.trim();
+            if line.is_empty() || line.starts_with('#') {
+                continue;
+            }
+            let path = if Path::new(line).is_absolute() {
+                PathBuf::from(line)
+            } else {
+                dir.join(line)
+            };
+            given.push((
+                path.display().to_string(),
+                format!("{} line {}", list.display(), n + 1),
+            ));
+        }
+    }
+    let mut paths = Vec::new();
+    for (s, origin) in given {
+        if !s.contains(['*', '?', '[']) {
+            paths.push(s);
+            continue;
+        }
+        let matches = glob::glob(&s).with_context(|| format!("{origin}: pattern {s:?}"))?;
+        let mut found: Vec<String> = matches
+            .filter_map(|m| m.ok())
+            .map(|p| p.display().to_string())
+            .collect();
+        if found.is_empty() {
+            bail!("{origin}: no file matches {s:?}");
+        }
+        found.sort();
+        paths.append(&mut found);
+    }
+    if paths.len() < 2 {
+        bail!("ggs align needs at least two scans ({} given)", paths.len());
+    }
+    Ok(paths)
+}
+
+fn settings(args: &AlignArgs) -> Result<Settings> {
+    Ok(args
+        .pipeline
+        .settings(|c| crate::pipeline_args::put(c, "voxel", &args.voxel))?
+        .1)
+}
+
+pub fn run(args: AlignArgs) -> Result<()> {
+    let t0 = Instant::now();
+    let settings = settings(&args)?;
+    let paths = scan_paths(&args)?;
+    let opts = args.input.options()?;
+    let scans: Vec<AlignScan> = paths
+        .iter()
+        .map(|p| {
+            Ok(AlignScan {
+                name: p.clone(),
+                cloud: files::load(Path::new(p), &opts, args.quiet)?.cloud,
+            })
+        })
+        .collect::<Result<_>>()?;
+    let anchor = match &args.anchor {
+        Some(name) => Some(
+            scans
+                .iter()
+                .position(|s| &s.name == name)
+                .with_context(|| {
+                    format!("--anchor: no scan named {name:?} among the scans given")
+                })?,
+        ),
+        None => None,
+    };
+    let runtime = Runtime {
+        threads: args.threads,
+        ..Runtime::default()
+    };
+    let pb = crate::progress::bar(scans.len() - 1, "scans", args.quiet);
+    let mut run_batch =
+        |scans: &[AlignScan], jobs: &[PlacementJob]| -> ggs::Result<Vec<PlacementOutcome>> {
+            jobs.iter()
+                .map(|job| {
+                    pb.set_message(format!("registering {}", scans[job.scan].name));
+                    let outcome = ggs::align::register_job(scans, job, &settings, &runtime)?;
+                    if outcome.settled && !outcome.ambiguous {
+                        pb.inc(0);
+                    }
+                    Ok(outcome)
+                })
+                .collect()
+        };
+    let result = ggs::align::align_by(&scans, &settings, anchor, &runtime, &mut run_batch);
+    pb.finish_and_clear();
+    let alignment = result?;
+    write_outputs(&args, &scans, &alignment)?;
+    if args.json {
+        out!("{}\n", serde_json::to_string_pretty(&alignment)?);
+    } else {
+        print_summary(&alignment, t0)?;
+    }
+    Ok(())
+}
+
+/// Every output file, each written atomically, once the alignment has succeeded.
+fn write_outputs(args: &AlignArgs, scans: &[AlignScan], a: &Alignment) -> Result<()> {
+    let dir = &args.out;
+    std::fs::create_dir_all(dir.join("scans")).with_context(|| dir.display().to_string())?;
+    ggs::io::write_atomic(
+        &dir.join("poses.json"),
+        serde_json::to_string_pretty(a)?.as_bytes(),
+    )?;
+    ggs::io::write_atomic(&dir.join("poses.txt"), a.poses_text().as_bytes())?;
+    let mut used = std::collections::BTreeSet::new();
+    for (i, (scan, out)) in scans.iter().zip(&a.scans).enumerate() {
+        let Some(pose) = &out.pose else { continue };
+        let stem = Path::new(&scan.name)
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_else(|| format!("scan{i}"));
+        let name = if used.insert(stem.clone()) {
+            stem
+        } else {
+            format!("{stem}_{i}")
+        };
+        let moved: Vec<_> = scan.cloud.iter().map(|p| pose.apply(&p)).collect();
+        ggs::io::write_cloud(&dir.join("scans").join(format!("{name}.ply")), &moved, None)?;
+    }
+    let spacing = scans
+        .iter()
+        .map(|s| ggs::spacing::point_spacing(&s.cloud))
+        .fold(0.0, f64::max);
+    ggs::io::write_cloud(
+        &dir.join("model.ply"),
+        &a.merged_model(scans, spacing),
+        None,
+    )?;
+    // REPORT
+    Ok(())
+}
+
+fn print_summary(a: &Alignment, t0: Instant) -> Result<()> {
+    let placed = a.scans.iter().filter(|s| s.pose.is_some()).count();
+    outln!(
+        "{placed} of {} scans placed in the frame of {} ({} registrations, {} of {} edges accepted, {:.2} s)",
+        a.scans.len(),
+        a.anchor,
+        a.registrations,
+        a.edges.iter().filter(|e| e.accepted).count(),
+        a.edges.len(),
+        t0.elapsed().as_secs_f64()
+    );
+    for s in &a.scans {
+        match &s.pose {
+            Some(_) => outln!(
+                "  {:<40} confidence {:.3}  overlap {:.2}",
+                s.name,
+                s.confidence,
+                s.overlap
+            ),
+            None => outln!(
+                "  {:<40} NOT PLACED: {}",
+                s.name,
+                s.reason.as_deref().unwrap_or("")
+            ),
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,81 @@
+//! The joint refinement: every placed scan refined by ICP against the others at once.
+//!
+//! A round refines each placed scan but the anchor, from its current pose, onto the union of
+//! its neighbours in the pose graph (the scans it shares an accepted edge with) at their
+//! current poses; the new poses replace the old ones together at the end of the round (a
+//! Jacobi step, so the order of the scans does not matter and the scans of a round run in
+//! parallel with the same result). Pairwise errors that the pose graph averaged are then
+//! corrected against all the overlapping surface at once.
+
+use super::graph::{icp_distance, Edge};
+use super::scan::Prepared;
+use crate::cloud::Cloud;
+use crate::error::Result;
+use crate::refine::{self, CorrespondenceDistance, RefineConfig};
+use crate::transform::Rigid;
+use rayon::prelude::*;
+
+/// Rounds of the joint refinement.
+pub const JOINT_ROUNDS: usize = 3;
+
+/// The scans sharing an accepted edge with `i`, in index order.
+fn neighbours(i: usize, edges: &[Edge]) -> Vec<usize> {
+    let mut n: Vec<usize> = edges
+        .iter()
+        .filter(|e| e.accepted && (e.from == i || e.to == i))
+        .map(|e| if e.from == i { e.to } else { e.from })
+        .collect();
+    n.sort_unstable();
+    n.dedup();
+    n
+}
+
+/// [`JOINT_ROUNDS`] rounds (see the module documentation); returns the new poses.
+pub fn refine_jointly(
+    prepared: &[Prepared],
+    poses: &[Option<Rigid>],
+    edges: &[Edge],
+    anchor: usize,
+    refine_cfg: &RefineConfig,
+) -> Result<Vec<Option<Rigid>>> {
+    let mut poses = poses.to_vec();
+    for _ in 0..JOINT_ROUNDS {
+        let next: Vec<Option<Rigid>> = (0..poses.len())
+            .into_par_iter()
+            .map(|i| refine_one(prepared, &poses, edges, i, anchor, refine_cfg))
+            .collect::<Result<_>>()?;
+        poses = next;
+    }
+    Ok(poses)
+}
+
+fn refine_one(
+    prepared: &[Prepared],
+    poses: &[Option<Rigid>],
+    edges: &[Edge],
+    i: usize,
+    anchor: usize,
+    refine_cfg: &RefineConfig,
+) -> Result<Option<Rigid>> {
+    let Some(pose) = poses[i] else {
+        return Ok(None);
+    };
+    let others = neighbours(i, edges);
+    if i == anchor || others.is_empty() {
+        return Ok(Some(pose));
+    }
+    let mut target = Vec::new();
+    let mut d: f64 = 0.0;
+    for &j in &others {
+        let pj = poses[j].expect("an edge joins placed scans");
+        target.extend(prepared[j].icp.iter().map(|p| pj.apply(p)));
+        d = d.max(icp_distance(prepared, i, j) / 2.0);
+    }
+    let cfg = RefineConfig {
+        correspondence: CorrespondenceDistance::Fixed(d),
+        ..*refine_cfg
+    };
+    let source = Cloud::new(prepared[i].icp.clone());
+    let r = refine::refine(&source, &Cloud::new(target), &pose, &cfg)?;
+    Ok(Some(r.transform))
+}

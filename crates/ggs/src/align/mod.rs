@@ -1,0 +1,258 @@
+//! Aligning a set of scans into one frame with no initial guess (`ggs align`).
+//!
+//! 1. **Prepare** ([`scan`]): each scan is thinned, indexed and summarized by a shape
+//!    descriptor that does not change when it moves.
+//! 2. **Place** ([`placement`]): starting from a seed (the scan whose shape descriptor is
+//!    nearest to all the others', so that a stray scan is not the start), scans are
+//!    registered one batch at
+//!    a time onto a model of the placed scans most alike to them, by ggs's verified global
+//!    registration ([`crate::register`]); a registration that is ambiguous or leaves too
+//!    little of the scan on the model does not place it. Scans left over are unplaced.
+//!    About `N − 1` registrations, plus one per retry of a scan that did not fit the model
+//!    yet, instead of the `N(N − 1)/2` of every pair.
+//! 3. **Pose graph** ([`graph`]): every pair of placed scans that overlap gets an edge
+//!    measured by ICP; edges that disagree with the placements (a cycle that does not close)
+//!    are rejected; the poses are optimized over the accepted edges with a robust kernel.
+//! 4. **Joint refinement** ([`joint`]): each scan refined against all its neighbours at once.
+//!
+//! Every step is deterministic and independent of the thread count; the batch of
+//! registrations of step 2 is fixed before it runs, so a parallel executor (Ray, from Python)
+//! gives the same result as running them one by one ([`align_by`]).
+
+pub mod graph;
+pub mod joint;
+pub mod placement;
+pub mod result;
+pub mod scan;
+
+pub use placement::{PlacementJob, PlacementOutcome, PlacementRules};
+pub use result::{AlignTimes, Alignment, ScanPose, ALIGNMENT_FORMAT};
+pub use scan::AlignScan;
+
+use crate::cloud::Cloud;
+use crate::error::{GgsError, Result};
+use crate::refine::RefineConfig;
+use crate::settings::{Runtime, Settings};
+use crate::transform::Rigid;
+use std::time::Instant;
+
+/// Default of the `align_min_overlap` setting.
+pub const DEFAULT_MIN_OVERLAP: f64 = 0.3;
+/// Default of the `align_min_confidence` setting.
+pub const DEFAULT_MIN_CONFIDENCE: f64 = 0.3;
+/// Default of the `align_model_scans` setting.
+pub const DEFAULT_MODEL_SCANS: usize = 4;
+
+/// Align `scans` into the frame of scan `anchor` (0 when `None`; when that scan cannot be
+/// placed, the frame is the seed's and the result says so), running each registration here
+/// with `runtime`'s threads.
+pub fn align(
+    scans: &[AlignScan],
+    settings: &Settings,
+    anchor: Option<usize>,
+    runtime: &Runtime,
+) -> Result<Alignment> {
+    align_by(scans, settings, anchor, runtime, &mut |scans, jobs| {
+        jobs.iter()
+            .map(|job| register_job(scans, job, settings, runtime))
+            .collect()
+    })
+}
+
+/// Run one placement's registration here: scan `job.scan` onto the job's model, with the
+/// registration stopping after its first look for a quick try.
+pub fn register_job(
+    scans: &[AlignScan],
+    job: &PlacementJob,
+    settings: &Settings,
+    runtime: &Runtime,
+) -> Result<PlacementOutcome> {
+    let mut cfg = settings.plan(runtime.threads)?;
+    cfg.search.progress = runtime.progress.clone();
+    cfg.search.cancel = runtime.cancel.clone();
+    if let Some(look) = cfg.first_look.as_mut() {
+        look.stop_unsettled = job.quick;
+    }
+    let model = Cloud::new(job.model_points.clone());
+    let r = crate::settings::register_planned(&scans[job.scan].cloud, &model, settings, &cfg)?;
+    Ok(PlacementOutcome::of(&r, job.quick, settings.reject_ratio))
+}
+
+/// [`align`] with the registrations of each batch run by `run_batch` (which returns one
+/// outcome per job, in job order): a progress display, or a parallel executor.
+pub fn align_by(
+    scans: &[AlignScan],
+    settings: &Settings,
+    anchor: Option<usize>,
+    runtime: &Runtime,
+    run_batch: &mut dyn FnMut(&[AlignScan], &[PlacementJob]) -> Result<Vec<PlacementOutcome>>,
+) -> Result<Alignment> {
+    settings.validate()?;
+    let anchor = anchor.unwrap_or(0);
+    if anchor >= scans.len() {
+        let n = scans.len();
+        return Err(GgsError::param(
+            "anchor",
+            format!("no scan {anchor} in a set of {n}"),
+        ));
+    }
+    let t0 = Instant::now();
+    let mut times = AlignTimes::default();
+    let prepared = crate::threads::in_pool(runtime.threads, || scan::prepare_all(scans))??;
+    times.prepare_ms = ms(t0);
+    let seed = scan::medoid(&prepared);
+    let rules = PlacementRules {
+        min_overlap: settings.align_min_overlap,
+        min_confidence: settings.align_min_confidence,
+        model_scans: settings.align_model_scans,
+        batch: settings.align_batch,
+        quick_first: settings.plan(runtime.threads)?.first_look.is_some(),
+    };
+    let mut growth = placement::Growth::new(&prepared, seed, rules);
+    let t1 = Instant::now();
+    loop {
+        let jobs = growth.next_jobs();
+        if jobs.is_empty() {
+            break;
+        }
+        let outcomes = run_batch(scans, &jobs)?;
+        if outcomes.len() != jobs.len() {
+            let what = "the executor returned another number of outcomes than of jobs";
+            return Err(GgsError::param("run_batch", what));
+        }
+        for (job, outcome) in jobs.iter().zip(outcomes) {
+            growth.record(job, outcome);
+        }
+    }
+    times.place_ms = ms(t1);
+    let refine_cfg = settings
+        .refine_config(runtime.threads)
+        .unwrap_or(RefineConfig {
+            threads: runtime.threads,
+            ..RefineConfig::default()
+        });
+    let t2 = Instant::now();
+    let (edges, optimized) = crate::threads::in_pool(runtime.threads, || {
+        let edges = graph::measure_edges(&prepared, &growth.poses, &refine_cfg)?;
+        let optimized = graph::optimize_poses(&prepared, &growth.poses, &edges, seed);
+        Ok::<_, GgsError>((edges, optimized))
+    })??;
+    times.graph_ms = ms(t2);
+    let t3 = Instant::now();
+    let poses = crate::threads::in_pool(runtime.threads, || {
+        joint::refine_jointly(&prepared, &optimized, &edges, seed, &refine_cfg)
+    })??;
+    times.joint_ms = ms(t3);
+    times.total_ms = ms(t0);
+    let outcome = Outcome {
+        poses,
+        edges,
+        seed,
+        anchor,
+    };
+    Ok(report(scans, &prepared, &growth, outcome, settings, times))
+}
+
+fn ms(t: Instant) -> f64 {
+    t.elapsed().as_secs_f64() * 1e3
+}
+
+/// The final poses (in the seed's frame) and graph, the seed and the anchor asked for.
+struct Outcome {
+    poses: Vec<Option<Rigid>>,
+    edges: Vec<graph::Edge>,
+    seed: usize,
+    anchor: usize,
+}
+
+/// The [`Alignment`] of the final poses, in the anchor's frame when the anchor is placed
+/// (else the seed's, with a warning). A placed scan that no accepted edge joins to another
+/// (when there are others) is reported unplaced.
+fn report(
+    scans: &[AlignScan],
+    prepared: &[scan::Prepared],
+    growth: &placement::Growth,
+    o: Outcome,
+    settings: &Settings,
+    times: AlignTimes,
+) -> Alignment {
+    let confirmed = |i: usize| {
+        o.edges
+            .iter()
+            .any(|e| e.accepted && (e.from == i || e.to == i))
+    };
+    let placed_count = o.poses.iter().flatten().count();
+    let poses: Vec<Option<Rigid>> = (0..scans.len())
+        .map(|i| o.poses[i].filter(|_| placed_count < 2 || confirmed(i)))
+        .collect();
+    let mut warnings = Vec::new();
+    let frame = if poses[o.anchor].is_some() {
+        o.anchor
+    } else {
+        warnings.push(format!(
+            "{} is not placed: the common frame is that of {}",
+            scans[o.anchor].name, scans[o.seed].name
+        ));
+        o.seed
+    };
+    let to_frame = poses[frame].expect("the seed is placed").inverse();
+    let poses: Vec<Option<Rigid>> = poses
+        .iter()
+        .map(|p| p.map(|p| to_frame.compose(&p)))
+        .collect();
+    let placed: Vec<usize> = (0..poses.len()).filter(|&i| poses[i].is_some()).collect();
+    let out = scans
+        .iter()
+        .enumerate()
+        .map(|(i, s)| {
+            let placing = growth
+                .attempts
+                .iter()
+                .rev()
+                .find(|a| a.scan == i && a.placed);
+            let last = growth.attempts.iter().rev().find(|a| a.scan == i);
+            match (poses[i], o.poses[i]) {
+                (Some(pose), _) => {
+                    let others: Vec<usize> = placed.iter().copied().filter(|&j| j != i).collect();
+                    let op: Vec<Rigid> = others.iter().map(|&j| poses[j].unwrap()).collect();
+                    ScanPose {
+                        name: s.name.clone(),
+                        pose: Some(pose),
+                        confidence: placing.map_or(1.0, |a| a.confidence),
+                        overlap: placement::overlap_share(prepared, i, &pose, &others, &op),
+                        reason: None,
+                    }
+                }
+                (None, Some(_)) => {
+                    unplaced(s, "placed, but no other scan's overlap confirms its pose")
+                }
+                (None, None) => {
+                    let reason = last.and_then(|a| a.reason.clone());
+                    unplaced(s, &reason.unwrap_or_else(|| "never tried".into()))
+                }
+            }
+        })
+        .collect();
+    Alignment {
+        format: ALIGNMENT_FORMAT,
+        anchor: scans[frame].name.clone(),
+        seed: scans[o.seed].name.clone(),
+        scans: out,
+        warnings,
+        registrations: growth.attempts.len(),
+        attempts: growth.attempts.clone(),
+        edges: o.edges,
+        times,
+        settings: settings.to_json(),
+    }
+}
+
+fn unplaced(s: &AlignScan, reason: &str) -> ScanPose {
+    ScanPose {
+        name: s.name.clone(),
+        pose: None,
+        confidence: 0.0,
+        overlap: 0.0,
+        reason: Some(reason.to_string()),
+    }
+}

@@ -1,0 +1,338 @@
+//! Placing scans one by one: the growing model.
+//!
+//! The anchor is placed first, at the identity. Then, repeatedly, the unplaced scans whose
+//! shape descriptor is nearest to a placed scan's ([`Prepared::descriptor`]) are registered
+//! (ggs's verified global registration, no initial guess) onto a model: the placed scans
+//! moved into the common frame, merged and thinned. A scan is tried quickly first (the
+//! registration's first look only, onto the `align_model_scans` placed scans most alike to
+//! it); when no quick try is left, the scans still waiting get the whole search onto every
+//! placed scan. A registration
+//! places its scan when it is not ambiguous, its confidence is at least `align_min_confidence`
+//! and at least `align_min_overlap` of the scan's
+//! points then lie within the overlap distance of the model; otherwise the scan waits, and is
+//! tried again only once the model has grown. The run ends when no scan is left to try:
+//! the scans never placed are reported unplaced, not forced in.
+//!
+//! Every choice depends on the scans and the settings only: the jobs of a batch are fixed
+//! before any of them runs and their outcomes are recorded in job order, so running a
+//! batch's registrations one after the other, on threads or as Ray tasks gives the same
+//! placements.
+
+use super::scan::{descriptor_distance, Prepared, THIN_SPACINGS};
+use crate::cloud::Point;
+use crate::pipeline::Registration;
+use crate::transform::Rigid;
+use serde::Serialize;
+
+/// The overlap distance, in point spacings of the coarser of the two clouds compared: a
+/// point is in the overlap when a point of the other cloud lies this close.
+pub const OVERLAP_SPACINGS: f64 = 3.0;
+/// Points of a scan sampled to measure an overlap.
+pub const OVERLAP_SAMPLE: usize = 4000;
+
+/// What decides the placements (from the settings, see [`crate::Settings`]'s `align_*` keys).
+#[derive(Debug, Clone, Copy)]
+pub struct PlacementRules {
+    /// The least share of a scan's points within the overlap distance of the model.
+    pub min_overlap: f64,
+    /// The least confidence of the registration.
+    pub min_confidence: f64,
+    /// The model a scan is registered onto holds at most this many placed scans.
+    pub model_scans: usize,
+    /// Registrations decided together (see the module documentation).
+    pub batch: usize,
+    /// Try each scan quickly first (the registration's first look only), and with the whole
+    /// search only when no quick try is left.
+    pub quick_first: bool,
+}
+
+/// One registration to run: scan `scan` onto the merged placed scans `model`.
+#[derive(Debug, Clone)]
+pub struct PlacementJob {
+    pub scan: usize,
+    /// A quick try: the registration stops after its first look, settled or not
+    /// ([`FirstLook::stop_unsettled`](crate::pipeline::FirstLook::stop_unsettled)).
+    pub quick: bool,
+    pub model: Vec<usize>,
+    /// The model's points in the common frame.
+    pub model_points: Vec<Point>,
+}
+
+/// What a placement needs to know of a registration.
+#[derive(Debug, Clone)]
+pub struct PlacementOutcome {
+    /// `p_model = T · p_scan`.
+    pub transform: Rigid,
+    pub confidence: f64,
+    pub ambiguous: bool,
+    pub warnings: Vec<String>,
+    /// False for a quick try whose first look did not settle the pair.
+    pub settled: bool,
+    /// Wall time of the registration, in milliseconds.
+    pub ms: f64,
+}
+
+impl PlacementOutcome {
+    /// The outcome of `r`, the registration of a job (`quick` as the job's). A quick try is
+    /// settled when its first look accepted its pose, or when the first look's runner-up
+    /// scores below `reject_ratio` times the chosen pose: the first look's own rule without
+    /// its least score, which asks half of both clouds to meet and so cannot hold for a
+    /// scan onto a model larger than the scan (the placement's overlap rule asks it of the
+    /// scan instead).
+    pub fn of(r: &Registration, quick: bool, reject_ratio: f64) -> Self {
+        let clear = |f: &crate::pipeline::FirstLookReport| {
+            f.accepted || f.runner_up_score.is_none_or(|s| s < reject_ratio * f.score)
+        };
+        PlacementOutcome {
+            transform: r.transform,
+            confidence: r.confidence,
+            ambiguous: r.ambiguous,
+            warnings: r.warnings.clone(),
+            settled: !quick || r.first_look.as_ref().is_none_or(clear),
+            ms: r.timings.total_ms,
+        }
+    }
+}
+
+/// One registration tried, and what came of it.
+#[derive(Debug, Clone, Serialize)]
+pub struct Attempt {
+    /// Index of the scan registered.
+    pub scan: usize,
+    /// Indices of the placed scans that made the model.
+    pub model: Vec<usize>,
+    /// A quick try (see [`PlacementJob::quick`]).
+    pub quick: bool,
+    #[serde(serialize_with = "crate::transform::serialize_rows")]
+    pub transform: Rigid,
+    pub confidence: f64,
+    pub ambiguous: bool,
+    /// Share of the scan's points within the overlap distance of the model.
+    pub overlap: f64,
+    pub placed: bool,
+    /// Why the scan was not placed by this registration.
+    pub reason: Option<String>,
+    pub warnings: Vec<String>,
+    pub ms: f64,
+}
+
+/// The state of the growing model (see the module documentation).
+pub struct Growth<'a> {
+    prepared: &'a [Prepared],
+    rules: PlacementRules,
+    /// Pose of each scan in the common frame (`p_model = pose · p_scan`), once placed.
+    pub poses: Vec<Option<Rigid>>,
+    /// The number of placed scans when each scan was last tried quickly, and with the whole
+    /// search (0: never).
+    quick_tried_with: Vec<usize>,
+    full_tried_with: Vec<usize>,
+    /// The model of each scan's last quick and whole try: a try onto the same model is not
+    /// run again.
+    quick_model: Vec<Option<Vec<usize>>>,
+    full_model: Vec<Option<Vec<usize>>>,
+    /// Tries that did not place each scan.
+    failures: Vec<usize>,
+    pub attempts: Vec<Attempt>,
+}
+
+impl<'a> Growth<'a> {
+    /// The anchor placed at the identity, every other scan waiting.
+    pub fn new(prepared: &'a [Prepared], anchor: usize, rules: PlacementRules) -> Self {
+        let mut poses = vec![None; prepared.len()];
+        poses[anchor] = Some(Rigid::identity());
+        Growth {
+            prepared,
+            rules,
+            poses,
+            quick_tried_with: vec![0; prepared.len()],
+            full_tried_with: vec![0; prepared.len()],
+            quick_model: vec![None; prepared.len()],
+            full_model: vec![None; prepared.len()],
+            failures: vec![0; prepared.len()],
+            attempts: Vec::new(),
+        }
+    }
+
+    fn placed(&self) -> Vec<usize> {
+        (0..self.poses.len())
+            .filter(|&i| self.poses[i].is_some())
+            .collect()
+    }
+
+    /// Descriptor distance from scan `u` to its nearest placed scan.
+    fn nearest_placed(&self, u: usize, placed: &[usize]) -> f64 {
+        placed
+            .iter()
+            .map(|&q| {
+                descriptor_distance(&self.prepared[u].descriptor, &self.prepared[q].descriptor)
+            })
+            .fold(f64::INFINITY, f64::min)
+    }
+
+    /// The next batch: the waiting scans not tried since the model last grew (a try onto the
+    /// same model as the scan's last is skipped), quick tries
+    /// before whole searches, the scans that failed fewer times first, then those nearest to
+    /// a placed scan (ties by index); empty when the alignment is done.
+    pub fn next_jobs(&mut self) -> Vec<PlacementJob> {
+        let placed = self.placed();
+        let waiting = |tried: &[usize]| -> Vec<usize> {
+            (0..self.poses.len())
+                .filter(|&u| self.poses[u].is_none() && tried[u] < placed.len())
+                .collect()
+        };
+        let quick = self.rules.quick_first && !waiting(&self.quick_tried_with).is_empty();
+        let mut order: Vec<(usize, f64, usize)> = waiting(if quick {
+            &self.quick_tried_with
+        } else {
+            &self.full_tried_with
+        })
+        .into_iter()
+        .map(|u| (self.failures[u], self.nearest_placed(u, &placed), u))
+        .collect();
+        order.sort_by(|a, b| a.0.cmp(&b.0).then(a.1.total_cmp(&b.1)).then(a.2.cmp(&b.2)));
+        let order_is_empty = order.is_empty();
+        let mut jobs = Vec::new();
+        for (_, _, u) in order {
+            if jobs.len() == self.rules.batch.max(1) {
+                break;
+            }
+            let job = self.job(u, &placed, quick);
+            let last = if quick {
+                &mut self.quick_model
+            } else {
+                &mut self.full_model
+            };
+            let tried = if quick {
+                &mut self.quick_tried_with
+            } else {
+                &mut self.full_tried_with
+            };
+            tried[u] = placed.len();
+            if last[u].as_ref() != Some(&job.model) {
+                last[u] = Some(job.model.clone());
+                jobs.push(job);
+            }
+        }
+        if jobs.is_empty() && !order_is_empty {
+            return self.next_jobs();
+        }
+        jobs
+    }
+
+    /// Scan `u` onto the `model_scans` placed scans most alike to it for a quick try, onto
+    /// every placed scan for a whole search.
+    fn job(&self, u: usize, placed: &[usize], quick: bool) -> PlacementJob {
+        let d = |q: usize| {
+            descriptor_distance(&self.prepared[u].descriptor, &self.prepared[q].descriptor)
+        };
+        let mut model = placed.to_vec();
+        model.sort_by(|&a, &b| d(a).total_cmp(&d(b)).then(a.cmp(&b)));
+        if quick {
+            model.truncate(self.rules.model_scans.max(1));
+        }
+        model.sort_unstable();
+        let mut points = Vec::new();
+        let mut spacing: f64 = 0.0;
+        for &q in &model {
+            let pose = self.poses[q].expect("placed");
+            points.extend(self.prepared[q].thinned.iter().map(|p| pose.apply(p)));
+            spacing = spacing.max(self.prepared[q].spacing);
+        }
+        let model_points = if model.len() > 1 && spacing > 0.0 {
+            crate::thin::cell_centroids(&points, THIN_SPACINGS * spacing)
+        } else {
+            points
+        };
+        PlacementJob {
+            scan: u,
+            quick,
+            model,
+            model_points,
+        }
+    }
+
+    /// Record the outcome of `job`'s registration: place the scan or keep it waiting.
+    pub fn record(&mut self, job: &PlacementJob, outcome: PlacementOutcome) {
+        let u = job.scan;
+        let overlap = self.overlap_with(u, &outcome.transform, &job.model);
+        let reason = if !outcome.settled {
+            Some("a quick try did not settle it".to_string())
+        } else if outcome.ambiguous {
+            Some("the registration is ambiguous".to_string())
+        } else if outcome.confidence < self.rules.min_confidence {
+            Some(format!(
+                "confidence {:.2}, under the {:.2} required",
+                outcome.confidence, self.rules.min_confidence
+            ))
+        } else if overlap < self.rules.min_overlap {
+            Some(format!(
+                "{:.0} % of its points meet the model, under the {:.0} % required",
+                overlap * 100.0,
+                self.rules.min_overlap * 100.0
+            ))
+        } else {
+            None
+        };
+        match reason {
+            None => self.poses[u] = Some(outcome.transform),
+            Some(_) => self.failures[u] += 1,
+        }
+        self.attempts.push(Attempt {
+            scan: u,
+            model: job.model.clone(),
+            quick: job.quick,
+            transform: outcome.transform,
+            confidence: outcome.confidence,
+            ambiguous: outcome.ambiguous,
+            overlap,
+            placed: reason.is_none(),
+            reason,
+            warnings: outcome.warnings,
+            ms: outcome.ms,
+        });
+    }
+
+    /// Share of scan `u`'s thinned points, moved by `pose`, within the overlap distance of
+    /// any of the scans `others` at their poses.
+    pub fn overlap_with(&self, u: usize, pose: &Rigid, others: &[usize]) -> f64 {
+        let poses: Vec<Rigid> = others
+            .iter()
+            .map(|&q| self.poses[q].expect("placed"))
+            .collect();
+        overlap_share(self.prepared, u, pose, others, &poses)
+    }
+}
+
+/// Share of scan `u`'s thinned points (a strided sample of [`OVERLAP_SAMPLE`]), moved by
+/// `pose`, that lie within [`OVERLAP_SPACINGS`] point spacings of one of the scans `others`
+/// moved by `poses`.
+pub fn overlap_share(
+    prepared: &[Prepared],
+    u: usize,
+    pose: &Rigid,
+    others: &[usize],
+    poses: &[Rigid],
+) -> f64 {
+    let pts = &prepared[u].thinned;
+    if pts.is_empty() || others.is_empty() {
+        return 0.0;
+    }
+    let to_other: Vec<(&Prepared, Rigid, f64)> = others
+        .iter()
+        .zip(poses)
+        .map(|(&q, pq)| {
+            let d = OVERLAP_SPACINGS * prepared[u].spacing.max(prepared[q].spacing);
+            (&prepared[q], pq.inverse().compose(pose), d * d)
+        })
+        .collect();
+    let step = pts.len().div_ceil(OVERLAP_SAMPLE).max(1);
+    let (mut near, mut n) = (0usize, 0usize);
+    for p in pts.iter().step_by(step) {
+        n += 1;
+        let hit = to_other
+            .iter()
+            .any(|(q, m, d2)| q.index.nearest_within(&m.apply(p), *d2).is_some());
+        near += hit as usize;
+    }
+    near as f64 / n as f64
+}
