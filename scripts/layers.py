@@ -31,6 +31,7 @@ LAYERS = [
     ["metrics", "render"],
     ["pipeline"],
     ["settings"],
+    ["align"],
     ["html"],
     # the benchmark crate (ggs-bench) sits above the whole core crate
     ["bench::"],

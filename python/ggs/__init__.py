@@ -42,15 +42,18 @@ from ._api import (
     voxel_downsample,
     write_point_cloud,
 )
+from ._align import Alignment, align
 from . import bench, metrics
 
 __all__ = [
+    "Alignment",
     "Evaluation",
     "GgsWarning",
     "PRESETS",
     "ROTATION_SETS",
     "Result",
     "__version__",
+    "align",
     "as_points",
     "bench",
     "estimate_normals",

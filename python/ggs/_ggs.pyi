@@ -7,15 +7,19 @@ import numpy as np
 import numpy.typing as npt
 
 __all__ = [
+    "Aligner",
+    "AlignmentResult",
     "BenchPlan",
     "RunDirectory",
     "PRESETS",
     "ROTATION_SETS",
     "Report",
     "__version__",
+    "align",
     "bench_row_json",
     "estimate_normals",
     "evaluate",
+    "place",
     "read_point_cloud",
     "refine",
     "register",
@@ -46,6 +50,37 @@ def refine(
     threads: int,
 ) -> str: ...
 def settings(options: Dict[str, Any]) -> str: ...
+
+Outcome = Tuple[List[float], float, bool, List[str], bool, float]
+
+@final
+class AlignmentResult:
+    def document(self) -> str: ...
+    def write(self, dir: Union[str, os.PathLike[str]], command: Optional[str] = None) -> None: ...
+    def report_html(self) -> str: ...
+
+def align(
+    scans: List[npt.NDArray[Any]],
+    names: List[str],
+    options: Dict[str, Any],
+    anchor: Optional[int] = None,
+    progress: Optional[Callable[[int, int], None]] = None,
+) -> AlignmentResult: ...
+def place(
+    scan: npt.NDArray[Any], model: npt.NDArray[Any], options: Dict[str, Any], quick: bool
+) -> Outcome: ...
+
+class Aligner:
+    def __new__(
+        cls,
+        scans: List[npt.NDArray[Any]],
+        names: List[str],
+        options: Dict[str, Any],
+        anchor: Optional[int] = None,
+    ) -> Aligner: ...
+    def next_jobs(self) -> List[Tuple[int, npt.NDArray[np.float64], bool]]: ...
+    def record(self, outcomes: List[Outcome]) -> None: ...
+    def finish(self) -> AlignmentResult: ...
 def read_point_cloud(
     path: str,
     format: Optional[str],

@@ -6,6 +6,7 @@
 //! calling thread wakes every 50 ms to let Python handle signals (Ctrl-C stops a long search
 //! through the search's cancel flag and raises `KeyboardInterrupt`) and to report progress.
 
+mod align;
 mod arrays;
 mod bench;
 mod cloud_ops;
@@ -22,6 +23,10 @@ use pyo3::prelude::*;
 #[pymodule]
 fn _ggs(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(registration::register, m)?)?;
+    m.add_function(wrap_pyfunction!(align::align, m)?)?;
+    m.add_function(wrap_pyfunction!(align::place, m)?)?;
+    m.add_class::<align::Aligner>()?;
+    m.add_class::<align::AlignmentResult>()?;
     m.add_function(wrap_pyfunction!(registration::refine_py, m)?)?;
     m.add_function(wrap_pyfunction!(registration::settings, m)?)?;
     m.add_function(wrap_pyfunction!(io::read_point_cloud, m)?)?;

@@ -3,7 +3,7 @@
 use crate::files::{self, InputArgs};
 use anyhow::{bail, Context, Result};
 use clap::Args;
-use ggs::align::{AlignScan, Alignment, PlacementJob, PlacementOutcome};
+use ggs::align::{AlignScan, Aligner, Alignment};
 use ggs::settings::{Runtime, Settings};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -127,24 +127,35 @@ pub fn run(args: AlignArgs) -> Result<()> {
         threads: args.threads,
         ..Runtime::default()
     };
-    let pb = crate::progress::bar(scans.len() - 1, "scans", args.quiet);
-    let mut run_batch =
-        |scans: &[AlignScan], jobs: &[PlacementJob]| -> ggs::Result<Vec<PlacementOutcome>> {
-            jobs.iter()
-                .map(|job| {
-                    pb.set_message(format!("registering {}", scans[job.scan].name));
-                    let outcome = ggs::align::register_job(scans, job, &settings, &runtime)?;
-                    if outcome.settled && !outcome.ambiguous {
-                        pb.inc(0);
-                    }
-                    Ok(outcome)
-                })
-                .collect()
-        };
-    let result = ggs::align::align_by(&scans, &settings, anchor, &runtime, &mut run_batch);
+    let mut aligner = Aligner::new(scans, &settings, anchor, &runtime)?;
+    let pb = crate::progress::bar(aligner.scans().len() - 1, "scans placed", args.quiet);
+    let mut placed = 0;
+    loop {
+        let jobs = aligner.next_jobs();
+        if jobs.is_empty() {
+            break;
+        }
+        let mut outcomes = Vec::new();
+        for job in &jobs {
+            let scan = &aligner.scans()[job.scan];
+            pb.set_message(scan.name.clone());
+            outcomes.push(ggs::align::register_job(
+                &scan.cloud,
+                job,
+                &settings,
+                &runtime,
+            )?);
+        }
+        aligner.record(&jobs, outcomes)?;
+        placed = aligner.placed_count() - 1;
+        pb.set_position(placed as u64);
+    }
+    pb.set_message(format!("{placed} placed; pose graph and joint refinement"));
+    let result = aligner.finish(&runtime);
     pb.finish_and_clear();
     let alignment = result?;
-    write_outputs(&args, &scans, &alignment)?;
+    let scans = aligner.scans();
+    write_outputs(&args, scans, &alignment)?;
     if args.json {
         out!("{}\n", serde_json::to_string_pretty(&alignment)?);
     } else {
@@ -155,38 +166,10 @@ pub fn run(args: AlignArgs) -> Result<()> {
 
 /// Every output file, each written atomically, once the alignment has succeeded.
 fn write_outputs(args: &AlignArgs, scans: &[AlignScan], a: &Alignment) -> Result<()> {
-    let dir = &args.out;
-    std::fs::create_dir_all(dir.join("scans")).with_context(|| dir.display().to_string())?;
-    ggs::io::write_atomic(
-        &dir.join("poses.json"),
-        serde_json::to_string_pretty(a)?.as_bytes(),
-    )?;
-    ggs::io::write_atomic(&dir.join("poses.txt"), a.poses_text().as_bytes())?;
-    let mut used = std::collections::BTreeSet::new();
-    for (i, (scan, out)) in scans.iter().zip(&a.scans).enumerate() {
-        let Some(pose) = &out.pose else { continue };
-        let stem = Path::new(&scan.name)
-            .file_stem()
-            .map(|s| s.to_string_lossy().into_owned())
-            .unwrap_or_else(|| format!("scan{i}"));
-        let name = if used.insert(stem.clone()) {
-            stem
-        } else {
-            format!("{stem}_{i}")
-        };
-        let moved: Vec<_> = scan.cloud.iter().map(|p| pose.apply(&p)).collect();
-        ggs::io::write_cloud(&dir.join("scans").join(format!("{name}.ply")), &moved, None)?;
-    }
-    let spacing = scans
-        .iter()
-        .map(|s| ggs::spacing::point_spacing(&s.cloud))
-        .fold(0.0, f64::max);
-    ggs::io::write_cloud(
-        &dir.join("model.ply"),
-        &a.merged_model(scans, spacing),
-        None,
-    )?;
-    // REPORT
+    ggs::align::write_folder(&args.out, scans, a)?;
+    let mut report = ggs::html::alignment::AlignmentReport::new(scans, a);
+    report.command = Some(crate::register::command_line());
+    report.write(&args.out.join("report.html"))?;
     Ok(())
 }
 

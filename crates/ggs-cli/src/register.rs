@@ -239,7 +239,7 @@ pub fn run(args: RegisterArgs) -> Result<()> {
 }
 
 /// This process's command line, each argument quoted for a POSIX shell where it needs it.
-fn command_line() -> String {
+pub fn command_line() -> String {
     let quote = |a: String| {
         let plain = !a.is_empty()
             && a.chars()

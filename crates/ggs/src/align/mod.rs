@@ -17,14 +17,16 @@
 //!
 //! Every step is deterministic and independent of the thread count; the batch of
 //! registrations of step 2 is fixed before it runs, so a parallel executor (Ray, from Python)
-//! gives the same result as running them one by one ([`align_by`]).
+//! gives the same result as running them one by one ([`Aligner`]).
 
+pub mod folder;
 pub mod graph;
 pub mod joint;
 pub mod placement;
 pub mod result;
 pub mod scan;
 
+pub use folder::write_folder;
 pub use placement::{PlacementJob, PlacementOutcome, PlacementRules};
 pub use result::{AlignTimes, Alignment, ScanPose, ALIGNMENT_FORMAT};
 pub use scan::AlignScan;
@@ -34,35 +36,36 @@ use crate::error::{GgsError, Result};
 use crate::refine::RefineConfig;
 use crate::settings::{Runtime, Settings};
 use crate::transform::Rigid;
+use std::sync::Arc;
 use std::time::Instant;
-
-/// Default of the `align_min_overlap` setting.
-pub const DEFAULT_MIN_OVERLAP: f64 = 0.3;
-/// Default of the `align_min_confidence` setting.
-pub const DEFAULT_MIN_CONFIDENCE: f64 = 0.3;
-/// Default of the `align_model_scans` setting.
-pub const DEFAULT_MODEL_SCANS: usize = 4;
 
 /// Align `scans` into the frame of scan `anchor` (0 when `None`; when that scan cannot be
 /// placed, the frame is the seed's and the result says so), running each registration here
-/// with `runtime`'s threads.
+/// with `runtime`'s threads. (A `Vec` passes without a copy.)
 pub fn align(
-    scans: &[AlignScan],
+    scans: impl Into<Arc<[AlignScan]>>,
     settings: &Settings,
     anchor: Option<usize>,
     runtime: &Runtime,
 ) -> Result<Alignment> {
-    align_by(scans, settings, anchor, runtime, &mut |scans, jobs| {
-        jobs.iter()
-            .map(|job| register_job(scans, job, settings, runtime))
-            .collect()
-    })
+    let mut aligner = Aligner::new(scans, settings, anchor, runtime)?;
+    loop {
+        let jobs = aligner.next_jobs();
+        if jobs.is_empty() {
+            return aligner.finish(runtime);
+        }
+        let outcomes = jobs
+            .iter()
+            .map(|job| register_job(&aligner.scans()[job.scan].cloud, job, settings, runtime))
+            .collect::<Result<Vec<_>>>()?;
+        aligner.record(&jobs, outcomes)?;
+    }
 }
 
-/// Run one placement's registration here: scan `job.scan` onto the job's model, with the
-/// registration stopping after its first look for a quick try.
+/// Run one placement's registration here: `scan` onto the job's model, the registration
+/// stopping after its first look for a quick try.
 pub fn register_job(
-    scans: &[AlignScan],
+    scan: &Cloud,
     job: &PlacementJob,
     settings: &Settings,
     runtime: &Runtime,
@@ -74,83 +77,141 @@ pub fn register_job(
         look.stop_unsettled = job.quick;
     }
     let model = Cloud::new(job.model_points.clone());
-    let r = crate::settings::register_planned(&scans[job.scan].cloud, &model, settings, &cfg)?;
+    let r = crate::settings::register_planned(scan, &model, settings, &cfg)?;
     Ok(PlacementOutcome::of(&r, job.quick, settings.reject_ratio))
 }
 
-/// [`align`] with the registrations of each batch run by `run_batch` (which returns one
-/// outcome per job, in job order): a progress display, or a parallel executor.
-pub fn align_by(
-    scans: &[AlignScan],
-    settings: &Settings,
-    anchor: Option<usize>,
-    runtime: &Runtime,
-    run_batch: &mut dyn FnMut(&[AlignScan], &[PlacementJob]) -> Result<Vec<PlacementOutcome>>,
-) -> Result<Alignment> {
-    settings.validate()?;
-    let anchor = anchor.unwrap_or(0);
-    if anchor >= scans.len() {
-        let n = scans.len();
-        return Err(GgsError::param(
-            "anchor",
-            format!("no scan {anchor} in a set of {n}"),
-        ));
-    }
-    let t0 = Instant::now();
-    let mut times = AlignTimes::default();
-    let prepared = crate::threads::in_pool(runtime.threads, || scan::prepare_all(scans))??;
-    times.prepare_ms = ms(t0);
-    let seed = scan::medoid(&prepared);
-    let rules = PlacementRules {
-        min_overlap: settings.align_min_overlap,
-        min_confidence: settings.align_min_confidence,
-        model_scans: settings.align_model_scans,
-        batch: settings.align_batch,
-        quick_first: settings.plan(runtime.threads)?.first_look.is_some(),
-    };
-    let mut growth = placement::Growth::new(&prepared, seed, rules);
-    let t1 = Instant::now();
-    loop {
-        let jobs = growth.next_jobs();
-        if jobs.is_empty() {
-            break;
+/// An alignment in steps, for a caller that runs the registrations itself (a progress
+/// display, a Ray cluster): [`Aligner::next_jobs`] gives the registrations to run (all of a
+/// batch can run at once), [`Aligner::record`] takes their outcomes, in job order, until no
+/// job is left; then [`Aligner::finish`] builds the pose graph, refines and reports. The
+/// result does not depend on how or where the jobs ran.
+pub struct Aligner {
+    scans: Arc<[AlignScan]>,
+    settings: Settings,
+    growth: placement::Growth,
+    seed: usize,
+    anchor: usize,
+    started: Instant,
+    times: AlignTimes,
+}
+
+impl Aligner {
+    /// Check and prepare the scans (see [`align`]).
+    pub fn new(
+        scans: impl Into<Arc<[AlignScan]>>,
+        settings: &Settings,
+        anchor: Option<usize>,
+        runtime: &Runtime,
+    ) -> Result<Self> {
+        let scans = scans.into();
+        let started = Instant::now();
+        settings.validate()?;
+        let anchor = anchor.unwrap_or(0);
+        if anchor >= scans.len() {
+            let n = scans.len();
+            return Err(GgsError::param(
+                "anchor",
+                format!("no scan {anchor} in a set of {n}"),
+            ));
         }
-        let outcomes = run_batch(scans, &jobs)?;
+        let prepared = crate::threads::in_pool(runtime.threads, || scan::prepare_all(&scans))??;
+        let seed = scan::medoid(&prepared);
+        let rules = PlacementRules {
+            min_overlap: settings.align_min_overlap,
+            min_confidence: settings.align_min_confidence,
+            model_scans: settings.align_model_scans,
+            batch: settings.align_batch,
+            quick_first: settings.plan(runtime.threads)?.first_look.is_some(),
+        };
+        let times = AlignTimes {
+            prepare_ms: ms(started),
+            ..AlignTimes::default()
+        };
+        Ok(Aligner {
+            scans,
+            settings: settings.clone(),
+            growth: placement::Growth::new(prepared, seed, rules),
+            seed,
+            anchor,
+            started,
+            times,
+        })
+    }
+
+    /// The scans, as given.
+    pub fn scans(&self) -> &[AlignScan] {
+        &self.scans
+    }
+
+    /// The scans, shared (no copy).
+    pub fn shared_scans(&self) -> Arc<[AlignScan]> {
+        self.scans.clone()
+    }
+
+    /// The scans placed so far (the seed included).
+    pub fn placed_count(&self) -> usize {
+        self.growth.poses.iter().flatten().count()
+    }
+
+    /// The next batch of registrations; empty when the placement is done.
+    pub fn next_jobs(&mut self) -> Vec<PlacementJob> {
+        self.growth.next_jobs()
+    }
+
+    /// The outcomes of `jobs` (as [`Aligner::next_jobs`] gave them), in job order.
+    pub fn record(&mut self, jobs: &[PlacementJob], outcomes: Vec<PlacementOutcome>) -> Result<()> {
         if outcomes.len() != jobs.len() {
-            let what = "the executor returned another number of outcomes than of jobs";
-            return Err(GgsError::param("run_batch", what));
+            let what = format!("{} outcomes for {} jobs", outcomes.len(), jobs.len());
+            return Err(GgsError::param("outcomes", what));
         }
         for (job, outcome) in jobs.iter().zip(outcomes) {
-            growth.record(job, outcome);
+            self.growth.record(job, outcome);
         }
+        Ok(())
     }
-    times.place_ms = ms(t1);
-    let refine_cfg = settings
-        .refine_config(runtime.threads)
-        .unwrap_or(RefineConfig {
-            threads: runtime.threads,
-            ..RefineConfig::default()
-        });
-    let t2 = Instant::now();
-    let (edges, optimized) = crate::threads::in_pool(runtime.threads, || {
-        let edges = graph::measure_edges(&prepared, &growth.poses, &refine_cfg)?;
-        let optimized = graph::optimize_poses(&prepared, &growth.poses, &edges, seed);
-        Ok::<_, GgsError>((edges, optimized))
-    })??;
-    times.graph_ms = ms(t2);
-    let t3 = Instant::now();
-    let poses = crate::threads::in_pool(runtime.threads, || {
-        joint::refine_jointly(&prepared, &optimized, &edges, seed, &refine_cfg)
-    })??;
-    times.joint_ms = ms(t3);
-    times.total_ms = ms(t0);
-    let outcome = Outcome {
-        poses,
-        edges,
-        seed,
-        anchor,
-    };
-    Ok(report(scans, &prepared, &growth, outcome, settings, times))
+
+    /// The pose graph, the joint refinement and the result, once no job is left.
+    pub fn finish(&self, runtime: &Runtime) -> Result<Alignment> {
+        let mut times = self.times;
+        times.place_ms = ms(self.started) - times.prepare_ms;
+        let prepared = &self.growth.prepared;
+        let refine_cfg = self
+            .settings
+            .refine_config(runtime.threads)
+            .unwrap_or(RefineConfig {
+                threads: runtime.threads,
+                ..RefineConfig::default()
+            });
+        let t = Instant::now();
+        let poses = &self.growth.poses;
+        let (edges, optimized) = crate::threads::in_pool(runtime.threads, || {
+            let edges = graph::measure_edges(prepared, poses, &refine_cfg)?;
+            let optimized = graph::optimize_poses(prepared, poses, &edges, self.seed);
+            Ok::<_, GgsError>((edges, optimized))
+        })??;
+        times.graph_ms = ms(t);
+        let t = Instant::now();
+        let poses = crate::threads::in_pool(runtime.threads, || {
+            joint::refine_jointly(prepared, &optimized, &edges, self.seed, &refine_cfg)
+        })??;
+        times.joint_ms = ms(t);
+        times.total_ms = ms(self.started);
+        let outcome = Outcome {
+            poses,
+            edges,
+            seed: self.seed,
+            anchor: self.anchor,
+        };
+        Ok(report(
+            &self.scans,
+            prepared,
+            &self.growth,
+            outcome,
+            &self.settings,
+            times,
+        ))
+    }
 }
 
 fn ms(t: Instant) -> f64 {

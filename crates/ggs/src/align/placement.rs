@@ -117,8 +117,9 @@ pub struct Attempt {
 }
 
 /// The state of the growing model (see the module documentation).
-pub struct Growth<'a> {
-    prepared: &'a [Prepared],
+pub struct Growth {
+    /// The scans, prepared.
+    pub prepared: Vec<Prepared>,
     rules: PlacementRules,
     /// Pose of each scan in the common frame (`p_model = pose · p_scan`), once placed.
     pub poses: Vec<Option<Rigid>>,
@@ -135,20 +136,21 @@ pub struct Growth<'a> {
     pub attempts: Vec<Attempt>,
 }
 
-impl<'a> Growth<'a> {
+impl Growth {
     /// The anchor placed at the identity, every other scan waiting.
-    pub fn new(prepared: &'a [Prepared], anchor: usize, rules: PlacementRules) -> Self {
-        let mut poses = vec![None; prepared.len()];
+    pub fn new(prepared: Vec<Prepared>, anchor: usize, rules: PlacementRules) -> Self {
+        let n = prepared.len();
+        let mut poses = vec![None; n];
         poses[anchor] = Some(Rigid::identity());
         Growth {
             prepared,
             rules,
             poses,
-            quick_tried_with: vec![0; prepared.len()],
-            full_tried_with: vec![0; prepared.len()],
-            quick_model: vec![None; prepared.len()],
-            full_model: vec![None; prepared.len()],
-            failures: vec![0; prepared.len()],
+            quick_tried_with: vec![0; n],
+            full_tried_with: vec![0; n],
+            quick_model: vec![None; n],
+            full_model: vec![None; n],
+            failures: vec![0; n],
             attempts: Vec::new(),
         }
     }
@@ -169,54 +171,57 @@ impl<'a> Growth<'a> {
             .fold(f64::INFINITY, f64::min)
     }
 
-    /// The next batch: the waiting scans not tried since the model last grew (a try onto the
-    /// same model as the scan's last is skipped), quick tries
-    /// before whole searches, the scans that failed fewer times first, then those nearest to
-    /// a placed scan (ties by index); empty when the alignment is done.
+    /// The next batch (see [`Growth::try_order`]): quick tries while any is left, then whole
+    /// searches; a try onto the same model as the scan's last of its kind is skipped; empty
+    /// when the alignment is done.
     pub fn next_jobs(&mut self) -> Vec<PlacementJob> {
         let placed = self.placed();
-        let waiting = |tried: &[usize]| -> Vec<usize> {
-            (0..self.poses.len())
-                .filter(|&u| self.poses[u].is_none() && tried[u] < placed.len())
-                .collect()
-        };
-        let quick = self.rules.quick_first && !waiting(&self.quick_tried_with).is_empty();
-        let mut order: Vec<(usize, f64, usize)> = waiting(if quick {
+        loop {
+            let quick = self.rules.quick_first && !self.try_order(true, &placed).is_empty();
+            let order = self.try_order(quick, &placed);
+            if order.is_empty() {
+                return Vec::new();
+            }
+            let mut jobs = Vec::new();
+            for u in order.into_iter().take(self.rules.batch.max(1)) {
+                let job = self.job(u, &placed, quick);
+                let (tried, last) = if quick {
+                    (&mut self.quick_tried_with, &mut self.quick_model)
+                } else {
+                    (&mut self.full_tried_with, &mut self.full_model)
+                };
+                tried[u] = placed.len();
+                if last[u].as_ref() != Some(&job.model) {
+                    last[u] = Some(job.model.clone());
+                    jobs.push(job);
+                }
+            }
+            if !jobs.is_empty() {
+                return jobs;
+            }
+        }
+    }
+
+    /// The waiting scans not tried (quickly, or by a whole search) since the model last grew,
+    /// in the order they are tried: quick tries go to the scans that failed fewer times
+    /// first, then to those nearest to a placed scan by descriptor; whole searches, the
+    /// costly tries, to the nearest first (so a scan unlike the set, such as another
+    /// object's, comes last); ties by index.
+    fn try_order(&self, quick: bool, placed: &[usize]) -> Vec<usize> {
+        let tried = if quick {
             &self.quick_tried_with
         } else {
             &self.full_tried_with
-        })
-        .into_iter()
-        .map(|u| (self.failures[u], self.nearest_placed(u, &placed), u))
-        .collect();
+        };
+        let mut order: Vec<(usize, f64, usize)> = (0..self.poses.len())
+            .filter(|&u| self.poses[u].is_none() && tried[u] < placed.len())
+            .map(|u| {
+                let failures = if quick { self.failures[u] } else { 0 };
+                (failures, self.nearest_placed(u, placed), u)
+            })
+            .collect();
         order.sort_by(|a, b| a.0.cmp(&b.0).then(a.1.total_cmp(&b.1)).then(a.2.cmp(&b.2)));
-        let order_is_empty = order.is_empty();
-        let mut jobs = Vec::new();
-        for (_, _, u) in order {
-            if jobs.len() == self.rules.batch.max(1) {
-                break;
-            }
-            let job = self.job(u, &placed, quick);
-            let last = if quick {
-                &mut self.quick_model
-            } else {
-                &mut self.full_model
-            };
-            let tried = if quick {
-                &mut self.quick_tried_with
-            } else {
-                &mut self.full_tried_with
-            };
-            tried[u] = placed.len();
-            if last[u].as_ref() != Some(&job.model) {
-                last[u] = Some(job.model.clone());
-                jobs.push(job);
-            }
-        }
-        if jobs.is_empty() && !order_is_empty {
-            return self.next_jobs();
-        }
-        jobs
+        order.into_iter().map(|(_, _, u)| u).collect()
     }
 
     /// Scan `u` onto the `model_scans` placed scans most alike to it for a quick try, onto
@@ -299,7 +304,7 @@ impl<'a> Growth<'a> {
             .iter()
             .map(|&q| self.poses[q].expect("placed"))
             .collect();
-        overlap_share(self.prepared, u, pose, others, &poses)
+        overlap_share(&self.prepared, u, pose, others, &poses)
     }
 }
 

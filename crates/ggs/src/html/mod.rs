@@ -5,6 +5,7 @@
 //! URLs or inline SVG, style and script are inline, and nothing names a network address, so
 //! a report opens the same from a laptop, a cluster's scratch disk or an e-mail attachment.
 
+pub mod alignment;
 pub mod registration;
 
 use std::fmt::Write;
@@ -83,6 +84,31 @@ pub fn page(title: &str, body: &str, scripts: &[&str]) -> String {
     }
     s.push_str("</body></html>\n");
     s
+}
+
+/// The "Settings" section: every key of a settings object and its value, folded.
+pub fn settings_table(settings: &serde_json::Value) -> String {
+    let serde_json::Value::Object(fields) = settings else {
+        return String::new();
+    };
+    let mut s = String::from(
+        "<h2>Settings</h2><details><summary>every setting in force (docs/settings.md)</summary>\
+         <table><thead><tr><th>key</th><th>value</th></tr></thead><tbody>",
+    );
+    for (key, value) in fields {
+        let shown = match value {
+            serde_json::Value::Null => "unset".to_string(),
+            serde_json::Value::String(text) => text.clone(),
+            other => other.to_string(),
+        };
+        let _ = write!(
+            s,
+            "<tr><td><code>{}</code></td><td>{}</td></tr>",
+            escape(key),
+            escape(&shown)
+        );
+    }
+    s + "</tbody></table></details>"
 }
 
 /// A number for a table cell: `digits` decimals, "–" for NaN or infinity.

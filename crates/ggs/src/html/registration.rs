@@ -444,27 +444,9 @@ fn command_html(command: Option<&str>) -> String {
 
 /// Every setting in force, folded: the table `ggs settings` would print for this run.
 fn settings_html(reg: &Registration) -> String {
-    let Some(serde_json::Value::Object(fields)) = &reg.settings else {
-        return String::new();
-    };
-    let mut s = String::from(
-        "<h2>Settings</h2><details><summary>every setting in force (docs/settings.md)</summary>\
-         <table><thead><tr><th>key</th><th>value</th></tr></thead><tbody>",
-    );
-    for (key, value) in fields {
-        let shown = match value {
-            serde_json::Value::Null => "unset".to_string(),
-            serde_json::Value::String(text) => text.clone(),
-            other => other.to_string(),
-        };
-        let _ = write!(
-            s,
-            "<tr><td><code>{}</code></td><td>{}</td></tr>",
-            escape(key),
-            escape(&shown)
-        );
-    }
-    s + "</tbody></table></details>"
+    reg.settings
+        .as_ref()
+        .map_or_else(String::new, super::settings_table)
 }
 
 /// The 3-D view: target, source before and source after `T`, quantized to 16 bits in the
