@@ -169,3 +169,13 @@ def test_register_many_over_ray_equals_local_registration(cluster):
     assert isinstance(got[0], FileNotFoundError) and isinstance(got[1], ggs.Result)
     with pytest.raises(FileNotFoundError):
         ggs.register_many(bad, executor="ray")
+
+
+def test_align_over_ray_equals_local_alignment(cluster):
+    scans = [DATA / "bun045.ply", DATA / "bun000.ply", DATA / "bun0.pcd"]
+    remote = ggs.align(scans, executor="ray", align_batch=2)
+    local = ggs.align(scans, threads=1, align_batch=2)
+    assert remote.names == local.names and remote.unplaced == local.unplaced
+    for r, l in zip(remote.poses, local.poses):
+        assert (r is None and l is None) or np.array_equal(r, l)
+    assert remote.registrations == local.registrations

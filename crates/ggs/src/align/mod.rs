@@ -257,10 +257,11 @@ fn report(
         o.seed
     };
     let to_frame = poses[frame].expect("the seed is placed").inverse();
-    let poses: Vec<Option<Rigid>> = poses
+    let mut poses: Vec<Option<Rigid>> = poses
         .iter()
         .map(|p| p.map(|p| to_frame.compose(&p)))
         .collect();
+    poses[frame] = Some(Rigid::identity());
     let placed: Vec<usize> = (0..poses.len()).filter(|&i| poses[i].is_some()).collect();
     let out = scans
         .iter()
