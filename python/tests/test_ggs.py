@@ -518,7 +518,9 @@ def _python_blocks(markdown):
     return re.findall(r"```python\n(.*?)```", markdown.read_text(), flags=re.S)
 
 
-@pytest.mark.parametrize("doc", ["README.md", "python/README.md", "docs/settings.md"])
+@pytest.mark.parametrize(
+    "doc", ["README.md", "python/README.md", "docs/settings.md", "docs/align.md"]
+)
 def test_readme_examples_run_as_written(doc, monkeypatch):
     blocks = _python_blocks(ROOT / doc)
     assert blocks, doc

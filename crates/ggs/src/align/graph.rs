@@ -198,13 +198,13 @@ fn from_se3(x: &SE3) -> Rigid {
 }
 
 /// The poses that best agree with the accepted edges (see the module documentation); scans
-/// that are not placed stay unplaced.
+/// that are not placed stay unplaced. `None` where the optimization failed.
 pub fn optimize_poses(
     prepared: &[Prepared],
     poses: &[Option<Rigid>],
     edges: &[Edge],
     anchor: usize,
-) -> Vec<Option<Rigid>> {
+) -> Option<Vec<Option<Rigid>>> {
     let mut graph = Graph::new();
     let mut values = Values::new();
     for (i, pose) in poses.iter().enumerate() {
@@ -234,13 +234,113 @@ pub fn optimize_poses(
         .build();
         graph.add_factor(factor);
     }
-    let mut opt: LevenMarquardt = LevenMarquardt::new_default(graph);
-    let solved = match opt.optimize(values) {
-        Ok(v) => v,
-        Err(factrs::optimizers::OptError::MaxIterations(v)) => v,
-        Err(_) => return poses.to_vec(),
+    // fact.rs panics where a factorization fails; with a prior on every pose the system is
+    // positive definite, so that would be a defect: the placements are then kept and the
+    // caller says so.
+    let solved = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+        let mut opt: LevenMarquardt = LevenMarquardt::new_default(graph);
+        match opt.optimize(values) {
+            Ok(v) | Err(factrs::optimizers::OptError::MaxIterations(v)) => Some(v),
+            Err(_) => None,
+        }
+    }));
+    let Ok(Some(solved)) = solved else {
+        return None;
     };
-    (0..poses.len())
+    let mut out: Vec<Option<Rigid>> = (0..poses.len())
         .map(|i| poses[i].and_then(|_| solved.get::<_, SE3>(X(i as u32)).map(from_se3)))
-        .collect()
+        .collect();
+    // The anchor's tight prior holds it to about 1e-13; it is the frame, so exactly.
+    out[anchor] = poses[anchor];
+    Some(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::align::scan::{prepare_all, AlignScan};
+    use nalgebra::Rotation3;
+
+    fn motion(rx: f64, ry: f64, rz: f64, t: [f64; 3]) -> Rigid {
+        let r = *Rotation3::from_euler_angles(rx, ry, rz).matrix();
+        Rigid::new(r, Vector3::new(t[0], t[1], t[2]))
+    }
+
+    /// Three small scans (their points only set the spacing the noise models use).
+    fn prepared() -> Vec<Prepared> {
+        let cloud = |k: f64| {
+            let pts = (0..200)
+                .map(|i| [i as f64 * 0.01, k * 0.01, (i % 7) as f64 * 0.01])
+                .collect();
+            crate::cloud::Cloud::new(pts)
+        };
+        let scans: Vec<AlignScan> = (0..3)
+            .map(|k| AlignScan {
+                name: format!("s{k}"),
+                cloud: cloud(k as f64),
+            })
+            .collect();
+        prepare_all(&scans).unwrap()
+    }
+
+    fn edge(from: usize, to: usize, relative: Rigid, accepted: bool) -> Edge {
+        Edge {
+            from,
+            to,
+            relative,
+            overlap: 0.5,
+            moved_deg: 0.0,
+            moved_distance: 0.0,
+            accepted,
+            reason: None,
+        }
+    }
+
+    #[test]
+    fn each_scan_keeps_its_strongest_edges() {
+        let mut candidates = Vec::new();
+        for j in 1..=8 {
+            candidates.push((0, j, j as f64 / 10.0));
+        }
+        let kept = strongest_per_scan(&candidates, 9);
+        // Every scan 1..=8 has one edge only, so each keeps it.
+        assert_eq!(kept.len(), 8);
+        let mut two = candidates.clone();
+        two.push((1, 2, 0.05));
+        assert!(strongest_per_scan(&two, 9).contains(&(1, 2)));
+    }
+
+    #[test]
+    fn the_optimized_poses_agree_with_the_accepted_edges_and_ignore_the_rejected() {
+        let p = prepared();
+        let truth = [
+            Rigid::identity(),
+            motion(0.1, 0.2, -0.3, [0.1, 0.0, 0.02]),
+            motion(-0.2, 0.1, 0.4, [0.0, 0.05, 0.1]),
+        ];
+        let rel = |i: usize, j: usize| truth[i].inverse().compose(&truth[j]);
+        // Scan 2's placement is off by 1°; the edges say where it is.
+        let placed = [
+            Some(truth[0]),
+            Some(truth[1]),
+            Some(motion(0.0, 0.0, 0.0175, [0.0; 3]).compose(&truth[2])),
+        ];
+        let wrong = motion(1.0, 0.0, 0.0, [0.3, 0.0, 0.0]);
+        let edges = [
+            edge(0, 1, rel(0, 1), true),
+            edge(0, 2, rel(0, 2), true),
+            edge(1, 2, rel(1, 2), true),
+            edge(1, 2, wrong, false),
+        ];
+        let out = optimize_poses(&p, &placed, &edges, 0).unwrap();
+        for (o, t) in out.iter().zip(&truth) {
+            let o = o.unwrap();
+            assert!(crate::transform::rotation_angle_deg(&o.rotation, &t.rotation) < 0.01);
+            assert!((o.translation - t.translation).norm() < 1e-4);
+        }
+        assert_eq!(out[0].unwrap(), placed[0].unwrap(), "the anchor stays");
+        let unplaced =
+            optimize_poses(&p, &[Some(truth[0]), None, Some(truth[2])], &edges[1..2], 0).unwrap();
+        assert!(unplaced[1].is_none());
+    }
 }

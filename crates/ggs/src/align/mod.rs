@@ -192,6 +192,8 @@ impl Aligner {
         })??;
         times.graph_ms = ms(t);
         let t = Instant::now();
+        let graph_failed = optimized.is_none();
+        let optimized = optimized.unwrap_or_else(|| poses.clone());
         let poses = crate::threads::in_pool(runtime.threads, || {
             joint::refine_jointly(prepared, &optimized, &edges, self.seed, &refine_cfg)
         })??;
@@ -202,6 +204,7 @@ impl Aligner {
             edges,
             seed: self.seed,
             anchor: self.anchor,
+            graph_failed,
         };
         Ok(report(
             &self.scans,
@@ -224,6 +227,8 @@ struct Outcome {
     edges: Vec<graph::Edge>,
     seed: usize,
     anchor: usize,
+    /// The pose-graph optimization failed: the placements went to the joint refinement.
+    graph_failed: bool,
 }
 
 /// The [`Alignment`] of the final poses, in the anchor's frame when the anchor is placed
@@ -247,6 +252,10 @@ fn report(
         .map(|i| o.poses[i].filter(|_| placed_count < 2 || confirmed(i)))
         .collect();
     let mut warnings = Vec::new();
+    if o.graph_failed {
+        let what = "the pose-graph optimization failed: the poses are the placements, refined jointly";
+        warnings.push(what.to_string());
+    }
     let frame = if poses[o.anchor].is_some() {
         o.anchor
     } else {

@@ -27,6 +27,10 @@ use serde::Serialize;
 /// The overlap distance, in point spacings of the coarser of the two clouds compared: a
 /// point is in the overlap when a point of the other cloud lies this close.
 pub const OVERLAP_SPACINGS: f64 = 3.0;
+/// A quick try verified only its first look's few poses, so it places a scan on strong
+/// evidence only: at least this share of the scan's points on the model (and
+/// `align_min_overlap` if that is more). Weaker ones wait for the whole search.
+pub const QUICK_MIN_OVERLAP: f64 = 0.6;
 /// Points of a scan sampled to measure an overlap.
 pub const OVERLAP_SAMPLE: usize = 4000;
 
@@ -269,11 +273,12 @@ impl Growth {
                 "confidence {:.2}, under the {:.2} required",
                 outcome.confidence, self.rules.min_confidence
             ))
-        } else if overlap < self.rules.min_overlap {
+        } else if overlap < self.required_overlap(job.quick) {
             Some(format!(
-                "{:.0} % of its points meet the model, under the {:.0} % required",
+                "{:.0} % of its points meet the model, under the {:.0} % required{}",
                 overlap * 100.0,
-                self.rules.min_overlap * 100.0
+                self.required_overlap(job.quick) * 100.0,
+                if job.quick { " of a quick try" } else { "" }
             ))
         } else {
             None
@@ -295,6 +300,16 @@ impl Growth {
             warnings: outcome.warnings,
             ms: outcome.ms,
         });
+    }
+
+    /// The least overlap that places a scan: `align_min_overlap`, and at least
+    /// [`QUICK_MIN_OVERLAP`] for a quick try.
+    fn required_overlap(&self, quick: bool) -> f64 {
+        if quick {
+            self.rules.min_overlap.max(QUICK_MIN_OVERLAP)
+        } else {
+            self.rules.min_overlap
+        }
     }
 
     /// Share of scan `u`'s thinned points, moved by `pose`, within the overlap distance of
@@ -340,4 +355,93 @@ pub fn overlap_share(
         near += hit as usize;
     }
     near as f64 / n as f64
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::align::scan::{prepare_all, AlignScan};
+    use crate::cloud::Cloud;
+
+    /// Four scans: a plane patch, the same patch again, a larger one and a line.
+    fn prepared() -> Vec<Prepared> {
+        let patch = |n: usize, step: f64| -> Cloud {
+            Cloud::new(
+                (0..n * n)
+                    .map(|i| [(i % n) as f64 * step, (i / n) as f64 * step, 0.0])
+                    .collect(),
+            )
+        };
+        let line = Cloud::new((0..300).map(|i| [i as f64 * 0.01, 0.0, 0.0]).collect());
+        let scans = [patch(20, 0.01), patch(20, 0.01), patch(30, 0.01), line];
+        let scans: Vec<AlignScan> = scans
+            .into_iter()
+            .enumerate()
+            .map(|(k, cloud)| AlignScan {
+                name: format!("s{k}"),
+                cloud,
+            })
+            .collect();
+        prepare_all(&scans).unwrap()
+    }
+
+    fn rules(batch: usize) -> PlacementRules {
+        PlacementRules {
+            min_overlap: 0.4,
+            min_confidence: 0.3,
+            model_scans: 8,
+            batch,
+            quick_first: true,
+        }
+    }
+
+    fn outcome(settled: bool, confidence: f64) -> PlacementOutcome {
+        PlacementOutcome {
+            transform: Rigid::identity(),
+            confidence,
+            ambiguous: false,
+            warnings: Vec::new(),
+            settled,
+            ms: 0.0,
+        }
+    }
+
+    #[test]
+    fn quick_tries_come_first_and_a_scan_is_tried_again_only_onto_another_model() {
+        let mut g = Growth::new(prepared(), 0, rules(8));
+        let jobs = g.next_jobs();
+        assert!(jobs.iter().all(|j| j.quick) && jobs.len() == 3);
+        // The same patch is nearest to the seed by descriptor, the line farthest.
+        assert_eq!(jobs[0].scan, 1);
+        assert_eq!(jobs.last().unwrap().scan, 3);
+        for j in &jobs {
+            g.record(j, outcome(false, 0.9));
+        }
+        let whole = g.next_jobs();
+        assert!(whole.iter().all(|j| !j.quick) && whole.len() == 3);
+        for j in &whole {
+            g.record(j, outcome(true, 0.1));
+        }
+        assert!(
+            g.next_jobs().is_empty(),
+            "nothing grew: nothing is tried again"
+        );
+        assert!(g.attempts.iter().all(|a| !a.placed));
+        assert!(g.attempts[3]
+            .reason
+            .as_deref()
+            .unwrap()
+            .contains("confidence 0.10"));
+    }
+
+    #[test]
+    fn a_placed_scan_grows_the_model_and_reopens_the_quick_tries() {
+        let mut g = Growth::new(prepared(), 0, rules(1));
+        let first = g.next_jobs();
+        assert_eq!((first.len(), first[0].scan), (1, 1));
+        g.record(&first[0], outcome(true, 0.9));
+        assert!(g.poses[1].is_some(), "{:?}", g.attempts[0].reason);
+        let next = g.next_jobs();
+        assert!(next[0].quick && next[0].model == vec![0, 1]);
+    }
 }
