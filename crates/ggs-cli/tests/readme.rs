@@ -31,7 +31,12 @@ fn shell_lines(markdown: &str) -> Vec<String> {
 fn readme_examples_run_as_written() {
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..");
     let mut lines = Vec::new();
-    for doc in ["README.md", "docs/cli.md", "docs/settings.md", "docs/align.md"] {
+    for doc in [
+        "README.md",
+        "docs/cli.md",
+        "docs/settings.md",
+        "docs/align.md",
+    ] {
         lines.extend(shell_lines(
             &std::fs::read_to_string(root.join(doc)).unwrap(),
         ));

@@ -232,8 +232,8 @@ struct Outcome {
 }
 
 /// The [`Alignment`] of the final poses, in the anchor's frame when the anchor is placed
-/// (else the seed's, with a warning). A placed scan that no accepted edge joins to another
-/// (when there are others) is reported unplaced.
+/// (else another placed scan's, with a warning). A placed scan that no accepted edge joins to
+/// another (when there are others) is reported unplaced.
 fn report(
     scans: &[AlignScan],
     prepared: &[scan::Prepared],
@@ -242,67 +242,30 @@ fn report(
     settings: &Settings,
     times: AlignTimes,
 ) -> Alignment {
-    let confirmed = |i: usize| {
-        o.edges
-            .iter()
-            .any(|e| e.accepted && (e.from == i || e.to == i))
-    };
-    let placed_count = o.poses.iter().flatten().count();
-    let poses: Vec<Option<Rigid>> = (0..scans.len())
-        .map(|i| o.poses[i].filter(|_| placed_count < 2 || confirmed(i)))
-        .collect();
     let mut warnings = Vec::new();
     if o.graph_failed {
-        let what = "the pose-graph optimization failed: the poses are the placements, refined jointly";
+        let what =
+            "the pose-graph optimization failed: the poses are the placements, refined jointly";
         warnings.push(what.to_string());
     }
-    let frame = if poses[o.anchor].is_some() {
-        o.anchor
-    } else {
+    let confirmed = confirmed_poses(&o);
+    let frame = frame_scan(&confirmed, &o);
+    if frame != o.anchor {
         warnings.push(format!(
             "{} is not placed: the common frame is that of {}",
-            scans[o.anchor].name, scans[o.seed].name
+            scans[o.anchor].name, scans[frame].name
         ));
-        o.seed
-    };
-    let to_frame = poses[frame].expect("the seed is placed").inverse();
-    let mut poses: Vec<Option<Rigid>> = poses
+    }
+    let to_frame = confirmed[frame]
+        .expect("the frame scan is placed")
+        .inverse();
+    let mut poses: Vec<Option<Rigid>> = confirmed
         .iter()
         .map(|p| p.map(|p| to_frame.compose(&p)))
         .collect();
     poses[frame] = Some(Rigid::identity());
-    let placed: Vec<usize> = (0..poses.len()).filter(|&i| poses[i].is_some()).collect();
-    let out = scans
-        .iter()
-        .enumerate()
-        .map(|(i, s)| {
-            let placing = growth
-                .attempts
-                .iter()
-                .rev()
-                .find(|a| a.scan == i && a.placed);
-            let last = growth.attempts.iter().rev().find(|a| a.scan == i);
-            match (poses[i], o.poses[i]) {
-                (Some(pose), _) => {
-                    let others: Vec<usize> = placed.iter().copied().filter(|&j| j != i).collect();
-                    let op: Vec<Rigid> = others.iter().map(|&j| poses[j].unwrap()).collect();
-                    ScanPose {
-                        name: s.name.clone(),
-                        pose: Some(pose),
-                        confidence: placing.map_or(1.0, |a| a.confidence),
-                        overlap: placement::overlap_share(prepared, i, &pose, &others, &op),
-                        reason: None,
-                    }
-                }
-                (None, Some(_)) => {
-                    unplaced(s, "placed, but no other scan's overlap confirms its pose")
-                }
-                (None, None) => {
-                    let reason = last.and_then(|a| a.reason.clone());
-                    unplaced(s, &reason.unwrap_or_else(|| "never tried".into()))
-                }
-            }
-        })
+    let out = (0..scans.len())
+        .map(|i| scan_pose(i, scans, prepared, growth, &poses, &o))
         .collect();
     Alignment {
         format: ALIGNMENT_FORMAT,
@@ -315,6 +278,70 @@ fn report(
         edges: o.edges,
         times,
         settings: settings.to_json(),
+    }
+}
+
+/// The placed scans that an accepted edge joins to another (all of them when only one is
+/// placed; the seed alone when no edge is accepted).
+fn confirmed_poses(o: &Outcome) -> Vec<Option<Rigid>> {
+    let joined = |i: usize| {
+        o.edges
+            .iter()
+            .any(|e| e.accepted && (e.from == i || e.to == i))
+    };
+    let placed = o.poses.iter().flatten().count();
+    let mut poses: Vec<Option<Rigid>> = (0..o.poses.len())
+        .map(|i| o.poses[i].filter(|_| placed < 2 || joined(i)))
+        .collect();
+    if poses.iter().all(Option::is_none) {
+        poses[o.seed] = o.poses[o.seed];
+    }
+    poses
+}
+
+/// The anchor when it is placed, else the seed, else the first placed scan.
+fn frame_scan(poses: &[Option<Rigid>], o: &Outcome) -> usize {
+    [o.anchor, o.seed]
+        .into_iter()
+        .chain(0..poses.len())
+        .find(|&i| poses[i].is_some())
+        .expect("a scan is placed")
+}
+
+/// Scan `i`'s outcome: its pose in the common frame with its confidence and overlap, or why
+/// it is not placed.
+fn scan_pose(
+    i: usize,
+    scans: &[AlignScan],
+    prepared: &[scan::Prepared],
+    growth: &placement::Growth,
+    poses: &[Option<Rigid>],
+    o: &Outcome,
+) -> ScanPose {
+    let s = &scans[i];
+    let Some(pose) = poses[i] else {
+        if o.poses[i].is_some() {
+            return unplaced(s, "placed, but no other scan's overlap confirms its pose");
+        }
+        let last = growth.attempts.iter().rev().find(|a| a.scan == i);
+        let reason = last.and_then(|a| a.reason.clone());
+        return unplaced(s, &reason.unwrap_or_else(|| "never tried".into()));
+    };
+    let others: Vec<usize> = (0..poses.len())
+        .filter(|&j| j != i && poses[j].is_some())
+        .collect();
+    let at: Vec<Rigid> = others.iter().map(|&j| poses[j].unwrap()).collect();
+    let placing = growth
+        .attempts
+        .iter()
+        .rev()
+        .find(|a| a.scan == i && a.placed);
+    ScanPose {
+        name: s.name.clone(),
+        pose: Some(pose),
+        confidence: placing.map_or(1.0, |a| a.confidence),
+        overlap: placement::overlap_share(prepared, i, &pose, &others, &at),
+        reason: None,
     }
 }
 

@@ -175,9 +175,9 @@ impl Growth {
             .fold(f64::INFINITY, f64::min)
     }
 
-    /// The next batch (see [`Growth::try_order`]): quick tries while any is left, then whole
-    /// searches; a try onto the same model as the scan's last of its kind is skipped; empty
-    /// when the alignment is done.
+    /// The next batch (in the order the module documentation gives): quick tries while any
+    /// is left, then whole searches; a try onto the same model as the scan's last of its kind
+    /// is skipped; empty when the alignment is done.
     pub fn next_jobs(&mut self) -> Vec<PlacementJob> {
         let placed = self.placed();
         loop {

@@ -221,7 +221,7 @@ fn scans_html(a: &Alignment) -> String {
     for (i, out) in a.scans.iter().enumerate() {
         let [r, g, b] = scan_color(i, n);
         let (placed, detail, row) = match &out.pose {
-            Some(p) => ("yes", escape(&p.to_text()).replace('\n', "<br>"), ""),
+            Some(p) => ("yes", pose_rows(p), ""),
             None => (
                 "no",
                 escape(out.reason.as_deref().unwrap_or("")),
@@ -240,6 +240,21 @@ fn scans_html(a: &Alignment) -> String {
         );
     }
     s + "</tbody></table>"
+}
+
+/// A pose's four rows, 6 decimals each, one line each.
+fn pose_rows(p: &crate::transform::Rigid) -> String {
+    let rows: Vec<String> = p
+        .to_rows()
+        .iter()
+        .map(|r| {
+            r.iter()
+                .map(|v| format!("{v:.6}"))
+                .collect::<Vec<_>>()
+                .join(" ")
+        })
+        .collect();
+    rows.join("<br>")
 }
 
 fn attempts_html(a: &Alignment) -> String {
