@@ -42,12 +42,16 @@ pub struct AlignArgs {
     pub quiet: bool,
 }
 
-/// The scan paths: the arguments, then the list's lines, each pattern expanded (sorted).
-fn scan_paths(args: &AlignArgs) -> Result<Vec<String>> {
+/// Where a scan given as an argument comes from, in errors.
+const CLI: &str = "the command line";
+
+/// The scan paths: the arguments, then the list's lines, each pattern expanded (sorted);
+/// each with where it was given (the command line, or the list file and line).
+fn scan_paths(args: &AlignArgs) -> Result<Vec<(String, String)>> {
     let mut given: Vec<(String, String)> = args
         .scans
         .iter()
-        .map(|s| (s.clone(), "the command line".into()))
+        .map(|s| (s.clone(), CLI.to_string()))
         .collect();
     if let Some(list) = &args.list {
         let text = std::fs::read_to_string(list).with_context(|| list.display().to_string())?;
@@ -71,7 +75,7 @@ fn scan_paths(args: &AlignArgs) -> Result<Vec<String>> {
     let mut paths = Vec::new();
     for (s, origin) in given {
         if !s.contains(['*', '?', '[']) {
-            paths.push(s);
+            paths.push((s, origin));
             continue;
         }
         let matches = glob::glob(&s).with_context(|| format!("{origin}: pattern {s:?}"))?;
@@ -83,7 +87,7 @@ fn scan_paths(args: &AlignArgs) -> Result<Vec<String>> {
             bail!("{origin}: no file matches {s:?}");
         }
         found.sort();
-        paths.append(&mut found);
+        paths.extend(found.into_iter().map(|p| (p, origin.clone())));
     }
     if paths.len() < 2 {
         bail!("ggs align needs at least two scans ({} given)", paths.len());
@@ -105,10 +109,16 @@ pub fn run(args: AlignArgs) -> Result<()> {
     let opts = args.input.options()?;
     let scans: Vec<AlignScan> = paths
         .iter()
-        .map(|p| {
+        .map(|(p, origin)| {
+            let loaded = files::load(Path::new(p), &opts, args.quiet);
+            let loaded = if origin == CLI {
+                loaded?
+            } else {
+                loaded.with_context(|| origin.clone())?
+            };
             Ok(AlignScan {
                 name: p.clone(),
-                cloud: files::load(Path::new(p), &opts, args.quiet)?.cloud,
+                cloud: loaded.cloud,
             })
         })
         .collect::<Result<_>>()?;

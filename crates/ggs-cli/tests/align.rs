@@ -110,6 +110,7 @@ fn bad_input_is_refused_with_what_is_wrong_and_no_file_written() {
     assert!(!Path::new(o).join("poses.json").exists());
     let list = tmp_dir("ggs-align", "badlist", true).join("l.txt");
     std::fs::write(&list, format!("{}\nabsent.ply\n", s(&b0))).unwrap();
+    assert_fails(&["align", "--list", s(&list), "--out", o], "l.txt line 2: ");
     assert_fails(&["align", "--list", s(&list), "--out", o], "absent.ply");
     let out_ok = ggs(&["align", "--help"]);
     assert!(String::from_utf8_lossy(&out_ok.stdout).contains("--anchor"));
