@@ -63,7 +63,8 @@ pub fn align(
 }
 
 /// Run one placement's registration here: `scan` onto the job's model, the registration
-/// stopping after its first look for a quick try.
+/// stopping after its first look for a quick try, and without the final refinement when it
+/// verifies its hypotheses.
 pub fn register_job(
     scan: &Cloud,
     job: &PlacementJob,
@@ -75,6 +76,12 @@ pub fn register_job(
     cfg.search.cancel = runtime.cancel.clone();
     if let Some(look) = cfg.first_look.as_mut() {
         look.stop_unsettled = job.quick;
+    }
+    // The verified pose is all a placement needs: the pose graph and the joint refinement
+    // refine every scan by ICP afterwards (where no verification runs, the final
+    // refinement stays: it is then the only ICP of the registration).
+    if cfg.verify.is_some() {
+        cfg.refine = None;
     }
     let model = Cloud::new(job.model_points.clone());
     let r = crate::settings::register_planned(scan, &model, settings, &cfg)?;
