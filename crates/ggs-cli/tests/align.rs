@@ -115,3 +115,26 @@ fn bad_input_is_refused_with_what_is_wrong_and_no_file_written() {
     let out_ok = ggs(&["align", "--help"]);
     assert!(String::from_utf8_lossy(&out_ok.stdout).contains("--anchor"));
 }
+
+#[test]
+fn a_scan_of_three_points_is_not_placed() {
+    let dir = tmp_dir("ggs-align", "tiny", true);
+    let tiny = dir.join("tiny.xyz");
+    std::fs::write(&tiny, "0 0 0\n0.01 0 0\n0 0.01 0\n").unwrap();
+    let (b0, b45) = (data("bun000.ply"), data("bun045.ply"));
+    let out = dir.join("out");
+    let doc = ggs_json(&[
+        "align",
+        s(&b0),
+        s(&b45),
+        s(&tiny),
+        "--out",
+        s(&out),
+        "--json",
+        "-q",
+    ]);
+    assert!(doc["scans"][2]["pose"].is_null(), "{}", doc["scans"][2]);
+    assert!(doc["scans"][1]["pose"].is_array());
+    let text = std::fs::read_to_string(out.join("poses.txt")).unwrap();
+    assert!(text.contains("tiny.xyz: not placed ("), "{text}");
+}

@@ -31,6 +31,9 @@ pub const OVERLAP_SPACINGS: f64 = 3.0;
 /// evidence only: at least this share of the scan's points on the model (and
 /// `align_min_overlap` if that is more). Weaker ones wait for the whole search.
 pub const QUICK_MIN_OVERLAP: f64 = 0.6;
+/// A placement needs at least this many of the scan's (thinned) points on the model: a scan
+/// of a handful of points fits anywhere.
+pub const MIN_OVERLAP_POINTS: f64 = 100.0;
 /// Points of a scan sampled to measure an overlap.
 pub const OVERLAP_SAMPLE: usize = 4000;
 
@@ -272,6 +275,11 @@ impl Growth {
             Some(format!(
                 "confidence {:.2}, under the {:.2} required",
                 outcome.confidence, self.rules.min_confidence
+            ))
+        } else if overlap * (self.prepared[u].thinned.len() as f64) < MIN_OVERLAP_POINTS {
+            Some(format!(
+                "about {:.0} of its points meet the model, under the {MIN_OVERLAP_POINTS} required",
+                overlap * self.prepared[u].thinned.len() as f64
             ))
         } else if overlap < self.required_overlap(job.quick) {
             Some(format!(
