@@ -53,6 +53,17 @@ fn scans_of(scans: &[Bound<'_, PyAny>], names: Vec<String>) -> PyResult<Vec<Alig
         .collect()
 }
 
+/// A runtime of `threads` whose run stops when the returned flag is set (Ctrl-C).
+fn cancellable(threads: usize) -> (Runtime, Arc<AtomicBool>) {
+    let cancel = Arc::new(AtomicBool::new(false));
+    let runtime = Runtime {
+        threads,
+        progress: None,
+        cancel: Some(cancel.clone()),
+    };
+    (runtime, cancel)
+}
+
 /// An alignment and its scans: the JSON document, and the folder of files.
 #[pyclass(frozen, module = "ggs._ggs")]
 pub struct AlignmentResult {
@@ -96,12 +107,7 @@ pub(crate) fn align(
 ) -> PyResult<AlignmentResult> {
     let scans: Arc<[AlignScan]> = scans_of(&scans, names)?.into();
     let (_, settings) = options.settings()?;
-    let cancel = Arc::new(AtomicBool::new(false));
-    let runtime = Runtime {
-        threads: options.threads,
-        progress: None,
-        cancel: Some(cancel.clone()),
-    };
+    let (runtime, cancel) = cancellable(options.threads);
     let progress = progress.map(|callback| Progress {
         callback,
         done: Arc::new(AtomicUsize::new(0)),
@@ -147,12 +153,7 @@ pub(crate) fn place(
         model_points: points_of("model", model)?,
     };
     let (_, settings) = options.settings()?;
-    let cancel = Arc::new(AtomicBool::new(false));
-    let runtime = Runtime {
-        threads: options.threads,
-        progress: None,
-        cancel: Some(cancel.clone()),
-    };
+    let (runtime, cancel) = cancellable(options.threads);
     let run = || ggs::align::register_job(&scan, &job, &settings, &runtime);
     let outcome = run_interruptible(py, &cancel, None, run)?.map_err(to_py_err)?;
     Ok(to_tuple(outcome))

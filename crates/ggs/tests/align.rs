@@ -95,18 +95,23 @@ fn dist(a: &[f64; 3], b: &[f64; 3]) -> f64 {
     ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
 }
 
+/// `ggs::align` with no setting changed, in the first scan's frame.
+fn align_with_defaults(scans: &[AlignScan]) -> Alignment {
+    align(
+        scans.to_vec(),
+        &Settings::default(),
+        None,
+        &Runtime::default(),
+    )
+    .unwrap()
+}
+
 #[test]
 fn ten_bunny_scans_shuffled_and_moved_come_out_within_1_deg_and_2_mm() {
     let Some((scans, truths)) = shuffled_set(11, Vec::new()) else {
         return;
     };
-    let a = align(
-        scans.clone(),
-        &Settings::default(),
-        None,
-        &Runtime::default(),
-    )
-    .unwrap();
+    let a = align_with_defaults(&scans);
     assert_eq!(a.anchor, scans[0].name, "the first scan gives the frame");
     assert!(a.unplaced().is_empty(), "{:?}", a.unplaced());
     let worst = check_poses(&a, &scans, &truths);
@@ -144,13 +149,7 @@ fn a_scan_of_another_object_is_reported_unplaced_and_the_rest_aligned() {
         return;
     };
     let (scans, truths) = shuffled_set(7, vec![distractor]).unwrap();
-    let a = align(
-        scans.clone(),
-        &Settings::default(),
-        None,
-        &Runtime::default(),
-    )
-    .unwrap();
+    let a = align_with_defaults(&scans);
     assert_eq!(a.unplaced(), vec!["demosthenes"]);
     check_poses(&a, &scans, &truths);
     let text = a.poses_text();

@@ -71,9 +71,7 @@ pub fn register_job(
     settings: &Settings,
     runtime: &Runtime,
 ) -> Result<PlacementOutcome> {
-    let mut cfg = settings.plan(runtime.threads)?;
-    cfg.search.progress = runtime.progress.clone();
-    cfg.search.cancel = runtime.cancel.clone();
+    let mut cfg = settings.plan_with(runtime)?;
     if let Some(look) = cfg.first_look.as_mut() {
         look.stop_unsettled = job.quick;
     }

@@ -238,6 +238,14 @@ impl Settings {
         toml::to_string(self).expect("settings serialize")
     }
 
+    /// [`Settings::plan`] on `runtime`'s threads, with its progress callback and cancel flag.
+    pub fn plan_with(&self, runtime: &Runtime) -> Result<RegistrationConfig> {
+        let mut cfg = self.plan(runtime.threads)?;
+        cfg.search.progress = runtime.progress.clone();
+        cfg.search.cancel = runtime.cancel.clone();
+        Ok(cfg)
+    }
+
     /// These settings as a JSON object, as results echo them ([`Registration::settings`]).
     pub fn to_json(&self) -> serde_json::Value {
         serde_json::to_value(self).expect("settings serialize")
@@ -257,10 +265,7 @@ pub fn register_with(
     settings: &Settings,
     runtime: &Runtime,
 ) -> Result<Registration> {
-    let mut cfg = settings.plan(runtime.threads)?;
-    cfg.search.progress = runtime.progress.clone();
-    cfg.search.cancel = runtime.cancel.clone();
-    register_planned(source, target, settings, &cfg)
+    register_planned(source, target, settings, &settings.plan_with(runtime)?)
 }
 
 /// Run `cfg`, the [`Settings::plan`] of `settings` with what a front end sets beside them (a
