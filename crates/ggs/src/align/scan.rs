@@ -4,6 +4,7 @@
 use crate::cloud::{Cloud, Point};
 use crate::error::{GgsError, Result};
 use crate::refine::neighbors::PointIndex;
+use rayon::prelude::*;
 
 /// A scan to align: its name (as the user gave it: a file name, or `scan N`) and its points.
 #[derive(Debug, Clone)]
@@ -73,7 +74,8 @@ pub fn prepare_all(scans: &[AlignScan]) -> Result<Vec<Prepared>> {
         .filter_map(|s| s.cloud.aabb())
         .map(|b| b.diagonal())
         .fold(0.0, f64::max);
-    Ok(scans.iter().map(|s| prepare(&s.cloud, range)).collect())
+    // Each scan on its own: the same result on any number of threads.
+    Ok(scans.par_iter().map(|s| prepare(&s.cloud, range)).collect())
 }
 
 fn prepare(cloud: &Cloud, range: f64) -> Prepared {
