@@ -205,9 +205,9 @@ impl PipelineArgs {
     }
 }
 
-/// The CLI with the help of each settings flag of `register` and `bench` ending in the
-/// presets' values, read from [`Settings::preset`]: the help cannot state a value the code
-/// does not use.
+/// The CLI with the help of each settings flag of `register`, `align`, `bench` and
+/// `settings` ending in the presets' values, read from [`Settings::preset`]: the help cannot
+/// state a value the code does not use.
 pub fn with_preset_values(cli: clap::Command) -> clap::Command {
     let default = Settings::preset(Preset::Default).to_json();
     let paper = Settings::preset(Preset::Paper).to_json();
@@ -241,6 +241,7 @@ pub fn with_preset_values(cli: clap::Command) -> clap::Command {
         command
     };
     cli.mut_subcommand("register", annotate)
+        .mut_subcommand("align", annotate)
         .mut_subcommand("bench", annotate)
         .mut_subcommand("settings", annotate)
 }
