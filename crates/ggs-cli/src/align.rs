@@ -166,6 +166,11 @@ pub fn run(args: AlignArgs) -> Result<()> {
     let alignment = result?;
     let scans = aligner.scans();
     write_outputs(&args, scans, &alignment)?;
+    if !args.quiet {
+        for w in &alignment.warnings {
+            eprintln!("warning: {w}");
+        }
+    }
     if args.json {
         out!("{}\n", serde_json::to_string_pretty(&alignment)?);
     } else {

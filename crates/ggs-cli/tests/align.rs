@@ -117,6 +117,26 @@ fn bad_input_is_refused_with_what_is_wrong_and_no_file_written() {
 }
 
 #[test]
+fn an_anchor_that_cannot_be_placed_gives_its_frame_to_another_scan_and_says_so() {
+    let dir = tmp_dir("ggs-align", "anchor", true);
+    let tiny = dir.join("tiny.xyz");
+    std::fs::write(&tiny, "0 0 0\n0.01 0 0\n0 0.01 0\n").unwrap();
+    let (b0, b45) = (data("bun000.ply"), data("bun045.ply"));
+    let out = dir.join("out");
+    let run = ggs(&["align", s(&tiny), s(&b0), s(&b45), "--out", s(&out)]);
+    assert!(run.status.success());
+    let err = String::from_utf8_lossy(&run.stderr);
+    assert!(
+        err.contains("tiny.xyz is not placed: the common frame is that of"),
+        "{err}"
+    );
+    let doc: Value =
+        serde_json::from_slice(&std::fs::read(out.join("poses.json")).unwrap()).unwrap();
+    assert_ne!(doc["anchor"], s(&tiny));
+    assert_eq!(doc["warnings"].as_array().unwrap().len(), 1);
+}
+
+#[test]
 fn a_scan_of_three_points_is_not_placed() {
     let dir = tmp_dir("ggs-align", "tiny", true);
     let tiny = dir.join("tiny.xyz");
