@@ -17,7 +17,7 @@
 //! Levenberg-Marquardt in fact.rs (factrs: factor graphs on Lie groups, sparse Cholesky by
 //! faer, single-threaded, so the result does not depend on the thread count).
 
-use super::placement::{overlap_share, OVERLAP_SPACINGS};
+use super::overlap::{overlap_distance, overlap_share, OVERLAP_SAMPLE};
 use super::scan::Prepared;
 use crate::cloud::Cloud;
 use crate::error::Result;
@@ -70,11 +70,6 @@ pub struct Edge {
     pub reason: Option<String>,
 }
 
-/// Overlap distance of scans `i` and `j`: [`OVERLAP_SPACINGS`] spacings of the coarser.
-pub fn overlap_distance(prepared: &[Prepared], i: usize, j: usize) -> f64 {
-    OVERLAP_SPACINGS * prepared[i].spacing.max(prepared[j].spacing)
-}
-
 /// The correspondence distance of the alignment's ICP between scans `i` and `j`: twice
 /// their overlap distance, and at least their ICP cells.
 pub fn icp_distance(prepared: &[Prepared], i: usize, j: usize) -> f64 {
@@ -95,8 +90,8 @@ pub fn measure_edges(
     for (a, &i) in placed.iter().enumerate() {
         for &j in &placed[a + 1..] {
             let (pi, pj) = (poses[i].unwrap(), poses[j].unwrap());
-            let share = overlap_share_sampled(prepared, j, &pj, i, &pi)
-                .max(overlap_share_sampled(prepared, i, &pi, j, &pj));
+            let share = overlap_share(prepared, j, &pj, &[i], &[pi], EDGE_SAMPLE)
+                .max(overlap_share(prepared, i, &pi, &[j], &[pj], EDGE_SAMPLE));
             if share >= EDGE_MIN_OVERLAP {
                 candidates.push((i, j, share));
             }
@@ -128,22 +123,6 @@ fn strongest_per_scan(candidates: &[(usize, usize, f64)], n: usize) -> Vec<(usiz
         .collect()
 }
 
-fn overlap_share_sampled(prepared: &[Prepared], j: usize, pj: &Rigid, i: usize, pi: &Rigid) -> f64 {
-    let step = prepared[j].thinned.len().div_ceil(EDGE_SAMPLE).max(1);
-    let d = overlap_distance(prepared, i, j);
-    let to_i = pi.inverse().compose(pj);
-    let pts = &prepared[j].thinned;
-    let (mut near, mut n) = (0usize, 0usize);
-    for p in pts.iter().step_by(step) {
-        n += 1;
-        near += prepared[i]
-            .index
-            .nearest_within(&to_i.apply(p), d * d)
-            .is_some() as usize;
-    }
-    near as f64 / n.max(1) as f64
-}
-
 fn measure_edge(
     prepared: &[Prepared],
     poses: &[Option<Rigid>],
@@ -161,7 +140,7 @@ fn measure_edge(
     let source = Cloud::new(prepared[j].icp.clone());
     let target = Cloud::new(prepared[i].icp.clone());
     let z = refine::refine(&source, &target, &start, &cfg)?.transform;
-    let overlap = overlap_share(prepared, j, &z, &[i], &[Rigid::identity()]);
+    let overlap = overlap_share(prepared, j, &z, &[i], &[Rigid::identity()], OVERLAP_SAMPLE);
     let moved_deg = crate::transform::rotation_angle_deg(&z.rotation, &start.rotation);
     let moved_distance = (z.translation - start.translation).norm();
     let reason = if overlap < EDGE_MIN_OVERLAP {
@@ -210,7 +189,7 @@ pub fn optimize_poses(
     for (i, pose) in poses.iter().enumerate() {
         let Some(pose) = pose else { continue };
         values.insert(X(i as u32), to_se3(pose));
-        let d = OVERLAP_SPACINGS * prepared[i].spacing.max(f64::MIN_POSITIVE);
+        let d = overlap_distance(prepared, i, i).max(f64::MIN_POSITIVE);
         let (sr, st) = if i == anchor {
             (1e-6, 1e-6 * d)
         } else {

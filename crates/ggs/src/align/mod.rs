@@ -22,6 +22,7 @@
 pub mod folder;
 pub mod graph;
 pub mod joint;
+pub mod overlap;
 pub mod placement;
 pub mod result;
 pub mod scan;
@@ -345,7 +346,7 @@ fn scan_pose(
         name: s.name.clone(),
         pose: Some(pose),
         confidence: placing.map_or(1.0, |a| a.confidence),
-        overlap: placement::overlap_share(prepared, i, &pose, &others, &at),
+        overlap: overlap::overlap_share(prepared, i, &pose, &others, &at, overlap::OVERLAP_SAMPLE),
         reason: None,
     }
 }

@@ -18,15 +18,13 @@
 //! batch's registrations one after the other, on threads or as Ray tasks gives the same
 //! placements.
 
+use super::overlap::{overlap_share, OVERLAP_SAMPLE};
 use super::scan::{descriptor_distance, Prepared, THIN_SPACINGS};
 use crate::cloud::Point;
 use crate::pipeline::Registration;
 use crate::transform::Rigid;
 use serde::Serialize;
 
-/// The overlap distance, in point spacings of the coarser of the two clouds compared: a
-/// point is in the overlap when a point of the other cloud lies this close.
-pub const OVERLAP_SPACINGS: f64 = 3.0;
 /// A quick try verified only its first look's few poses, so it places a scan on strong
 /// evidence only: at least this share of the scan's points on the model (and
 /// `align_min_overlap` if that is more). Weaker ones wait for the whole search.
@@ -34,8 +32,6 @@ pub const QUICK_MIN_OVERLAP: f64 = 0.6;
 /// A placement needs at least this many of the scan's (thinned) points on the model: a scan
 /// of a handful of points fits anywhere.
 pub const MIN_OVERLAP_POINTS: f64 = 100.0;
-/// Points of a scan sampled to measure an overlap.
-pub const OVERLAP_SAMPLE: usize = 4000;
 
 /// What decides the placements (from the settings, see [`crate::Settings`]'s `align_*` keys).
 #[derive(Debug, Clone, Copy)]
@@ -327,42 +323,8 @@ impl Growth {
             .iter()
             .map(|&q| self.poses[q].expect("placed"))
             .collect();
-        overlap_share(&self.prepared, u, pose, others, &poses)
+        overlap_share(&self.prepared, u, pose, others, &poses, OVERLAP_SAMPLE)
     }
-}
-
-/// Share of scan `u`'s thinned points (a strided sample of [`OVERLAP_SAMPLE`]), moved by
-/// `pose`, that lie within [`OVERLAP_SPACINGS`] point spacings of one of the scans `others`
-/// moved by `poses`.
-pub fn overlap_share(
-    prepared: &[Prepared],
-    u: usize,
-    pose: &Rigid,
-    others: &[usize],
-    poses: &[Rigid],
-) -> f64 {
-    let pts = &prepared[u].thinned;
-    if pts.is_empty() || others.is_empty() {
-        return 0.0;
-    }
-    let to_other: Vec<(&Prepared, Rigid, f64)> = others
-        .iter()
-        .zip(poses)
-        .map(|(&q, pq)| {
-            let d = OVERLAP_SPACINGS * prepared[u].spacing.max(prepared[q].spacing);
-            (&prepared[q], pq.inverse().compose(pose), d * d)
-        })
-        .collect();
-    let step = pts.len().div_ceil(OVERLAP_SAMPLE).max(1);
-    let (mut near, mut n) = (0usize, 0usize);
-    for p in pts.iter().step_by(step) {
-        n += 1;
-        let hit = to_other
-            .iter()
-            .any(|(q, m, d2)| q.index.nearest_within(&m.apply(p), *d2).is_some());
-        near += hit as usize;
-    }
-    near as f64 / n as f64
 }
 
 #[cfg(test)]

@@ -1,0 +1,50 @@
+//! How much of one scan lies on others: the alignment's measure of overlap.
+
+use super::scan::Prepared;
+use crate::transform::Rigid;
+
+/// The overlap distance, in point spacings of the coarser of the two clouds compared: a
+/// point is in the overlap when a point of the other cloud lies this close.
+pub const OVERLAP_SPACINGS: f64 = 3.0;
+/// Points of a scan sampled to measure an overlap that decides a placement or is reported.
+pub const OVERLAP_SAMPLE: usize = 4000;
+
+/// Overlap distance of scans `i` and `j`: [`OVERLAP_SPACINGS`] spacings of the coarser.
+pub fn overlap_distance(prepared: &[Prepared], i: usize, j: usize) -> f64 {
+    OVERLAP_SPACINGS * prepared[i].spacing.max(prepared[j].spacing)
+}
+
+/// Share of scan `u`'s thinned points (a strided sample of at most `sample`), moved by
+/// `pose`, that lie within the overlap distance ([`overlap_distance`]) of one of the scans
+/// `others` moved by `poses`.
+pub fn overlap_share(
+    prepared: &[Prepared],
+    u: usize,
+    pose: &Rigid,
+    others: &[usize],
+    poses: &[Rigid],
+    sample: usize,
+) -> f64 {
+    let pts = &prepared[u].thinned;
+    if pts.is_empty() || others.is_empty() {
+        return 0.0;
+    }
+    let to_other: Vec<(&Prepared, Rigid, f64)> = others
+        .iter()
+        .zip(poses)
+        .map(|(&q, pq)| {
+            let d = overlap_distance(prepared, u, q);
+            (&prepared[q], pq.inverse().compose(pose), d * d)
+        })
+        .collect();
+    let step = pts.len().div_ceil(sample.max(1)).max(1);
+    let (mut near, mut n) = (0usize, 0usize);
+    for p in pts.iter().step_by(step) {
+        n += 1;
+        let hit = to_other
+            .iter()
+            .any(|(q, m, d2)| q.index.nearest_within(&m.apply(p), *d2).is_some());
+        near += hit as usize;
+    }
+    near as f64 / n as f64
+}
