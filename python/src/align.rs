@@ -116,20 +116,14 @@ pub(crate) fn align(
     let placed = progress.as_ref().map(|p| p.done.clone());
     let run = || -> ggs::Result<Alignment> {
         let mut aligner = Core::new(scans.clone(), &settings, anchor, &runtime)?;
-        loop {
-            let jobs = aligner.next_jobs();
-            if jobs.is_empty() {
-                return aligner.finish(&runtime);
-            }
-            let outcomes = jobs
-                .iter()
-                .map(|j| ggs::align::register_job(&scans[j.scan].cloud, j, &settings, &runtime))
-                .collect::<ggs::Result<Vec<_>>>()?;
-            aligner.record(&jobs, outcomes)?;
+        let count = |n: usize| {
             if let Some(p) = &placed {
-                p.store(aligner.placed_count(), Ordering::Relaxed);
+                p.store(n, Ordering::Relaxed);
             }
-        }
+        };
+        let alignment = aligner.run(&runtime, |_, n| count(n))?;
+        count(alignment.scans.iter().filter(|s| s.pose.is_some()).count());
+        Ok(alignment)
     };
     let alignment = run_interruptible(py, &cancel, progress.as_ref(), run)?.map_err(to_py_err)?;
     Ok(AlignmentResult { scans, alignment })
@@ -154,7 +148,10 @@ pub(crate) fn place(
     };
     let (_, settings) = options.settings()?;
     let (runtime, cancel) = cancellable(options.threads);
-    let run = || ggs::align::register_job(&scan, &job, &settings, &runtime);
+    let run = || {
+        let plan = ggs::align::placement_plan(&settings, &runtime)?;
+        ggs::align::register_job(&scan, &job, &plan, &settings)
+    };
     let outcome = run_interruptible(py, &cancel, None, run)?.map_err(to_py_err)?;
     Ok(to_tuple(outcome))
 }

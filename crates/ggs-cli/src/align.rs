@@ -139,29 +139,10 @@ pub fn run(args: AlignArgs) -> Result<()> {
     };
     let mut aligner = Aligner::new(scans, &settings, anchor, &runtime)?;
     let pb = crate::progress::bar(aligner.scans().len() - 1, "scans placed", args.quiet);
-    let mut placed = 0;
-    loop {
-        let jobs = aligner.next_jobs();
-        if jobs.is_empty() {
-            break;
-        }
-        let mut outcomes = Vec::new();
-        for job in &jobs {
-            let scan = &aligner.scans()[job.scan];
-            pb.set_message(scan.name.clone());
-            outcomes.push(ggs::align::register_job(
-                &scan.cloud,
-                job,
-                &settings,
-                &runtime,
-            )?);
-        }
-        aligner.record(&jobs, outcomes)?;
-        placed = aligner.placed_count() - 1;
-        pb.set_position(placed as u64);
-    }
-    pb.set_message(format!("{placed} placed; pose graph and joint refinement"));
-    let result = aligner.finish(&runtime);
+    let result = aligner.run(&runtime, |scan, placed| {
+        pb.set_position(placed.saturating_sub(1) as u64);
+        pb.set_message(scan.name.clone());
+    });
     pb.finish_and_clear();
     let alignment = result?;
     let scans = aligner.scans();

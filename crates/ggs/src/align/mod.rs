@@ -34,6 +34,7 @@ pub use scan::AlignScan;
 
 use crate::cloud::Cloud;
 use crate::error::{GgsError, Result};
+use crate::pipeline::RegistrationConfig;
 use crate::refine::RefineConfig;
 use crate::settings::{Runtime, Settings};
 use crate::transform::Rigid;
@@ -49,38 +50,32 @@ pub fn align(
     anchor: Option<usize>,
     runtime: &Runtime,
 ) -> Result<Alignment> {
-    let mut aligner = Aligner::new(scans, settings, anchor, runtime)?;
-    loop {
-        let jobs = aligner.next_jobs();
-        if jobs.is_empty() {
-            return aligner.finish(runtime);
-        }
-        let outcomes = jobs
-            .iter()
-            .map(|job| register_job(&aligner.scans()[job.scan].cloud, job, settings, runtime))
-            .collect::<Result<Vec<_>>>()?;
-        aligner.record(&jobs, outcomes)?;
-    }
+    Aligner::new(scans, settings, anchor, runtime)?.run(runtime, |_, _| {})
 }
 
-/// Run one placement's registration here: `scan` onto the job's model, the registration
-/// stopping after its first look for a quick try, and without the final refinement when it
-/// verifies its hypotheses.
+/// The registration a placement runs, planned once for a whole alignment: `settings`' plan
+/// on `runtime`, without the final refinement when it verifies its hypotheses (the pose
+/// graph and the joint refinement refine every scan by ICP afterwards; where no
+/// verification runs, the final refinement stays: it is then the registration's only ICP).
+pub fn placement_plan(settings: &Settings, runtime: &Runtime) -> Result<RegistrationConfig> {
+    let mut cfg = settings.plan_with(runtime)?;
+    if cfg.verify.is_some() {
+        cfg.refine = None;
+    }
+    Ok(cfg)
+}
+
+/// Run one placement's registration here: `scan` onto the job's model with `plan` (the
+/// [`placement_plan`] of `settings`), stopping after its first look for a quick try.
 pub fn register_job(
     scan: &Cloud,
     job: &PlacementJob,
+    plan: &RegistrationConfig,
     settings: &Settings,
-    runtime: &Runtime,
 ) -> Result<PlacementOutcome> {
-    let mut cfg = settings.plan_with(runtime)?;
+    let mut cfg = plan.clone();
     if let Some(look) = cfg.first_look.as_mut() {
         look.stop_unsettled = job.quick;
-    }
-    // The verified pose is all a placement needs: the pose graph and the joint refinement
-    // refine every scan by ICP afterwards (where no verification runs, the final
-    // refinement stays: it is then the only ICP of the registration).
-    if cfg.verify.is_some() {
-        cfg.refine = None;
     }
     let model = Cloud::new(job.model_points.clone());
     let r = crate::settings::register_planned(scan, &model, settings, &cfg)?;
@@ -95,6 +90,8 @@ pub fn register_job(
 pub struct Aligner {
     scans: Arc<[AlignScan]>,
     settings: Settings,
+    /// The registration of every placement run here ([`placement_plan`]).
+    plan: RegistrationConfig,
     growth: placement::Growth,
     seed: usize,
     anchor: usize,
@@ -123,12 +120,13 @@ impl Aligner {
         }
         let prepared = crate::threads::in_pool(runtime.threads, || scan::prepare_all(&scans))??;
         let seed = scan::medoid(&prepared);
+        let plan = placement_plan(settings, runtime)?;
         let rules = PlacementRules {
             min_overlap: settings.align_min_overlap,
             min_confidence: settings.align_min_confidence,
             model_scans: settings.align_model_scans,
             batch: settings.align_batch,
-            quick_first: settings.plan(runtime.threads)?.first_look.is_some(),
+            quick_first: plan.first_look.is_some(),
         };
         let times = AlignTimes {
             prepare_ms: ms(started),
@@ -137,6 +135,7 @@ impl Aligner {
         Ok(Aligner {
             scans,
             settings: settings.clone(),
+            plan,
             growth: placement::Growth::new(prepared, seed, rules),
             seed,
             anchor,
@@ -175,6 +174,28 @@ impl Aligner {
             self.growth.record(job, outcome);
         }
         Ok(())
+    }
+
+    /// Run every placement here, calling `on_job(scan, scans placed so far)` before each
+    /// registration, then [`Aligner::finish`].
+    pub fn run(
+        &mut self,
+        runtime: &Runtime,
+        mut on_job: impl FnMut(&AlignScan, usize),
+    ) -> Result<Alignment> {
+        loop {
+            let jobs = self.next_jobs();
+            if jobs.is_empty() {
+                return self.finish(runtime);
+            }
+            let mut outcomes = Vec::with_capacity(jobs.len());
+            for job in &jobs {
+                let scan = &self.scans[job.scan];
+                on_job(scan, self.placed_count());
+                outcomes.push(register_job(&scan.cloud, job, &self.plan, &self.settings)?);
+            }
+            self.record(&jobs, outcomes)?;
+        }
     }
 
     /// The pose graph, the joint refinement and the result, once no job is left.
