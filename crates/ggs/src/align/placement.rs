@@ -180,23 +180,38 @@ impl Growth {
     pub fn next_jobs(&mut self) -> Vec<PlacementJob> {
         let placed = self.placed();
         loop {
-            let quick = self.rules.quick_first && !self.try_order(true, &placed).is_empty();
-            let order = self.try_order(quick, &placed);
+            let quick_order = if self.rules.quick_first {
+                self.try_order(true, &placed)
+            } else {
+                Vec::new()
+            };
+            let quick = !quick_order.is_empty();
+            let order = if quick {
+                quick_order
+            } else {
+                self.try_order(false, &placed)
+            };
             if order.is_empty() {
                 return Vec::new();
             }
             let mut jobs = Vec::new();
             for u in order.into_iter().take(self.rules.batch.max(1)) {
-                let job = self.job(u, &placed, quick);
+                let model = self.model_of(u, &placed, quick);
                 let (tried, last) = if quick {
                     (&mut self.quick_tried_with, &mut self.quick_model)
                 } else {
                     (&mut self.full_tried_with, &mut self.full_model)
                 };
                 tried[u] = placed.len();
-                if last[u].as_ref() != Some(&job.model) {
-                    last[u] = Some(job.model.clone());
-                    jobs.push(job);
+                if last[u].as_ref() != Some(&model) {
+                    last[u] = Some(model.clone());
+                    let model_points = self.model_points(&model);
+                    jobs.push(PlacementJob {
+                        scan: u,
+                        quick,
+                        model,
+                        model_points,
+                    });
                 }
             }
             if !jobs.is_empty() {
@@ -227,35 +242,35 @@ impl Growth {
         order.into_iter().map(|(_, _, u)| u).collect()
     }
 
-    /// Scan `u` onto the `model_scans` placed scans most alike to it for a quick try, onto
-    /// every placed scan for a whole search.
-    fn job(&self, u: usize, placed: &[usize], quick: bool) -> PlacementJob {
+    /// The model of scan `u` (indices, increasing): the `model_scans` placed scans most alike
+    /// to it for a quick try, every placed scan for a whole search.
+    fn model_of(&self, u: usize, placed: &[usize], quick: bool) -> Vec<usize> {
         let d = |q: usize| {
             descriptor_distance(&self.prepared[u].descriptor, &self.prepared[q].descriptor)
         };
         let mut model = placed.to_vec();
-        model.sort_by(|&a, &b| d(a).total_cmp(&d(b)).then(a.cmp(&b)));
         if quick {
+            model.sort_by(|&a, &b| d(a).total_cmp(&d(b)).then(a.cmp(&b)));
             model.truncate(self.rules.model_scans.max(1));
+            model.sort_unstable();
         }
-        model.sort_unstable();
+        model
+    }
+
+    /// The scans `model` in the common frame, merged and thinned to cells of
+    /// [`THIN_SPACINGS`] × their coarsest point spacing.
+    fn model_points(&self, model: &[usize]) -> Vec<Point> {
         let mut points = Vec::new();
         let mut spacing: f64 = 0.0;
-        for &q in &model {
+        for &q in model {
             let pose = self.poses[q].expect("placed");
             points.extend(self.prepared[q].thinned.iter().map(|p| pose.apply(p)));
             spacing = spacing.max(self.prepared[q].spacing);
         }
-        let model_points = if model.len() > 1 && spacing > 0.0 {
+        if model.len() > 1 && spacing > 0.0 {
             crate::thin::cell_centroids(&points, THIN_SPACINGS * spacing)
         } else {
             points
-        };
-        PlacementJob {
-            scan: u,
-            quick,
-            model,
-            model_points,
         }
     }
 
