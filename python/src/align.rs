@@ -81,10 +81,8 @@ impl AlignmentResult {
     /// Write poses.json, poses.txt, scans/, model.ply and report.html into `dir`.
     #[pyo3(signature = (dir, command=None))]
     fn write(&self, dir: PathBuf, command: Option<String>) -> PyResult<()> {
-        ggs::align::write_folder(&dir, &self.scans, &self.alignment).map_err(to_py_err)?;
-        let mut report = ggs::html::alignment::AlignmentReport::new(&self.scans, &self.alignment);
-        report.command = command;
-        report.write(&dir.join("report.html")).map_err(to_py_err)
+        let (scans, a) = (&self.scans, &self.alignment);
+        ggs::html::alignment::write_folder_and_report(&dir, scans, a, command).map_err(to_py_err)
     }
 
     /// The report page.

@@ -162,11 +162,10 @@ pub fn run(args: AlignArgs) -> Result<()> {
 
 /// Every output file, each written atomically, once the alignment has succeeded.
 fn write_outputs(args: &AlignArgs, scans: &[AlignScan], a: &Alignment) -> Result<()> {
-    ggs::align::write_folder(&args.out, scans, a)?;
-    let mut report = ggs::html::alignment::AlignmentReport::new(scans, a);
-    report.command = Some(crate::register::command_line());
-    report.write(&args.out.join("report.html"))?;
-    Ok(())
+    let command = Some(crate::register::command_line());
+    Ok(ggs::html::alignment::write_folder_and_report(
+        &args.out, scans, a, command,
+    )?)
 }
 
 fn print_summary(a: &Alignment, t0: Instant) -> Result<()> {

@@ -32,13 +32,5 @@ pub fn write_folder(dir: &Path, scans: &[AlignScan], a: &Alignment) -> Result<()
         let moved: Vec<_> = scan.cloud.iter().map(|p| pose.apply(&p)).collect();
         write_cloud(&dir.join("scans").join(format!("{name}.ply")), &moved, None)?;
     }
-    let spacing = scans
-        .iter()
-        .map(|s| crate::spacing::point_spacing(&s.cloud))
-        .fold(0.0, f64::max);
-    write_cloud(
-        &dir.join("model.ply"),
-        &a.merged_model(scans, spacing),
-        None,
-    )
+    write_cloud(&dir.join("model.ply"), &a.merged_model(scans), None)
 }

@@ -300,6 +300,7 @@ fn report(
         seed: scans[o.seed].name.clone(),
         scans: out,
         warnings,
+        model_cell: scan::THIN_SPACINGS * prepared.iter().map(|p| p.spacing).fold(0.0, f64::max),
         registrations: growth.attempts.len(),
         attempts: growth.attempts.clone(),
         edges: o.edges,

@@ -3,7 +3,7 @@
 
 use super::graph::Edge;
 use super::placement::Attempt;
-use super::scan::{AlignScan, THIN_SPACINGS};
+use super::scan::AlignScan;
 use crate::cloud::Point;
 use crate::transform::Rigid;
 use serde::Serialize;
@@ -56,6 +56,10 @@ pub struct Alignment {
     pub attempts: Vec<Attempt>,
     /// The pose graph's edges, accepted and rejected.
     pub edges: Vec<Edge>,
+    /// Cell of the merged model ([`Alignment::merged_model`]):
+    /// [`THIN_SPACINGS`](super::scan::THIN_SPACINGS) × the
+    /// coarsest point spacing of the set, in the clouds' units.
+    pub model_cell: f64,
     /// Number of global registrations run.
     pub registrations: usize,
     pub times: AlignTimes,
@@ -107,16 +111,16 @@ impl Alignment {
     }
 
     /// The placed scans moved into the common frame, merged and thinned to one point per
-    /// cell of [`THIN_SPACINGS`] × the coarsest point spacing `spacing` of the set.
-    pub fn merged_model(&self, scans: &[AlignScan], spacing: f64) -> Vec<Point> {
+    /// cell of `model_cell`.
+    pub fn merged_model(&self, scans: &[AlignScan]) -> Vec<Point> {
         let mut points = Vec::new();
         for (scan, out) in scans.iter().zip(&self.scans) {
             if let Some(pose) = &out.pose {
                 points.extend(scan.cloud.iter().map(|p| pose.apply(&p)));
             }
         }
-        if spacing > 0.0 {
-            crate::thin::cell_centroids(&points, THIN_SPACINGS * spacing)
+        if self.model_cell > 0.0 {
+            crate::thin::cell_centroids(&points, self.model_cell)
         } else {
             points
         }

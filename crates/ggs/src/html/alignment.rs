@@ -33,6 +33,20 @@ pub fn scan_color(i: usize, n: usize) -> [u8; 3] {
     [r, g, b].map(|c| (40.0 + 190.0 * c) as u8)
 }
 
+/// The folder of `ggs align --out DIR`: the alignment's files ([`crate::align::write_folder`])
+/// and `report.html`, with `command` shown as the line that reproduces it.
+pub fn write_folder_and_report(
+    dir: &Path,
+    scans: &[AlignScan],
+    alignment: &Alignment,
+    command: Option<String>,
+) -> Result<()> {
+    crate::align::write_folder(dir, scans, alignment)?;
+    let mut report = AlignmentReport::new(scans, alignment);
+    report.command = command;
+    report.write(&dir.join("report.html"))
+}
+
 /// Everything the report shows: the alignment and display samples of the placed scans,
 /// moved into the common frame.
 pub struct AlignmentReport<'a> {
