@@ -4,12 +4,11 @@
 //!    descriptor that does not change when it moves.
 //! 2. **Place** ([`placement`]): starting from a seed (the scan whose shape descriptor is
 //!    nearest to all the others', so that a stray scan is not the start), scans are
-//!    registered one batch at
-//!    a time onto a model of the placed scans most alike to them, by ggs's verified global
-//!    registration ([`crate::register`]); a registration that is ambiguous or leaves too
-//!    little of the scan on the model does not place it. Scans left over are unplaced.
-//!    About `N − 1` registrations, plus one per retry of a scan that did not fit the model
-//!    yet, instead of the `N(N − 1)/2` of every pair.
+//!    registered onto a model of placed scans by ggs's verified global registration
+//!    ([`crate::register`]); a registration that is ambiguous, unsure or leaves too little
+//!    of the scan on the model does not place it. Scans left over are unplaced. About
+//!    `N − 1` registrations, plus one per retry of a scan that did not fit the model yet,
+//!    instead of the `N(N − 1)/2` of every pair.
 //! 3. **Pose graph** ([`graph`]): every pair of placed scans that overlap gets an edge
 //!    measured by ICP; edges that disagree with the placements (a cycle that does not close)
 //!    are rejected; the poses are optimized over the accepted edges with a robust kernel.

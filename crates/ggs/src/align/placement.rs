@@ -1,17 +1,17 @@
 //! Placing scans one by one: the growing model.
 //!
-//! The anchor is placed first, at the identity. Then, repeatedly, the unplaced scans whose
-//! shape descriptor is nearest to a placed scan's ([`Prepared::descriptor`]) are registered
-//! (ggs's verified global registration, no initial guess) onto a model: the placed scans
-//! moved into the common frame, merged and thinned. A scan is tried quickly first (the
-//! registration's first look only, onto the `align_model_scans` placed scans most alike to
-//! it); when no quick try is left, the scans still waiting get the whole search onto every
-//! placed scan. A registration
-//! places its scan when it is not ambiguous, its confidence is at least `align_min_confidence`
-//! and at least `align_min_overlap` of the scan's
-//! points then lie within the overlap distance of the model; otherwise the scan waits, and is
-//! tried again only once the model has grown. The run ends when no scan is left to try:
-//! the scans never placed are reported unplaced, not forced in.
+//! The seed is placed first, at the identity. Then, repeatedly, waiting scans are
+//! registered (ggs's verified global registration, no initial guess) onto a model: placed
+//! scans moved into the common frame, merged and thinned. A scan is tried quickly first (the
+//! registration's first look only, onto the `align_model_scans` placed scans whose shape
+//! descriptors ([`Prepared::descriptor`]) are nearest to its own); when no quick try is
+//! left, the scans still waiting get the whole search onto every placed scan. A registration
+//! places its scan when it is not ambiguous, its confidence is at least
+//! `align_min_confidence`, and at least `align_min_overlap` of the scan's points (at least
+//! [`QUICK_MIN_OVERLAP`] for a quick try, and at least [`MIN_OVERLAP_POINTS`] points) then
+//! lie within the overlap distance of the model; otherwise the scan waits, and is tried
+//! again only onto another model. The run ends when no scan is left to try: the scans never
+//! placed are reported unplaced, not forced in.
 //!
 //! Every choice depends on the scans and the settings only: the jobs of a batch are fixed
 //! before any of them runs and their outcomes are recorded in job order, so running a
