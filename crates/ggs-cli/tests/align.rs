@@ -116,13 +116,18 @@ fn bad_input_is_refused_with_what_is_wrong_and_no_file_written() {
     assert!(String::from_utf8_lossy(&out_ok.stdout).contains("--anchor"));
 }
 
-#[test]
-fn an_anchor_that_cannot_be_placed_gives_its_frame_to_another_scan_and_says_so() {
-    let dir = tmp_dir("ggs-align", "anchor", true);
+/// A scan of three points (`tiny.xyz`) in a fresh folder, and an output folder beside it.
+fn tiny_scan(tag: &str) -> (std::path::PathBuf, std::path::PathBuf) {
+    let dir = tmp_dir("ggs-align", tag, true);
     let tiny = dir.join("tiny.xyz");
     std::fs::write(&tiny, "0 0 0\n0.01 0 0\n0 0.01 0\n").unwrap();
+    (tiny, dir.join("out"))
+}
+
+#[test]
+fn an_anchor_that_cannot_be_placed_gives_its_frame_to_another_scan_and_says_so() {
+    let (tiny, out) = tiny_scan("anchor");
     let (b0, b45) = (data("bun000.ply"), data("bun045.ply"));
-    let out = dir.join("out");
     let run = ggs(&["align", s(&tiny), s(&b0), s(&b45), "--out", s(&out)]);
     assert!(run.status.success());
     let err = String::from_utf8_lossy(&run.stderr);
@@ -138,11 +143,8 @@ fn an_anchor_that_cannot_be_placed_gives_its_frame_to_another_scan_and_says_so()
 
 #[test]
 fn a_scan_of_three_points_is_not_placed() {
-    let dir = tmp_dir("ggs-align", "tiny", true);
-    let tiny = dir.join("tiny.xyz");
-    std::fs::write(&tiny, "0 0 0\n0.01 0 0\n0 0.01 0\n").unwrap();
+    let (tiny, out) = tiny_scan("tiny");
     let (b0, b45) = (data("bun000.ply"), data("bun045.ply"));
-    let out = dir.join("out");
     let doc = ggs_json(&[
         "align",
         s(&b0),
