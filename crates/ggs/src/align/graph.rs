@@ -21,7 +21,7 @@ use super::overlap::{overlap_distance, overlap_share, OVERLAP_SAMPLE};
 use super::scan::Prepared;
 use crate::cloud::Cloud;
 use crate::error::Result;
-use crate::refine::{self, CorrespondenceDistance, RefineConfig};
+use crate::refine::{self, CorrespondenceDistance, PreparedPair, RefineConfig};
 use crate::transform::Rigid;
 use factrs::assign_symbols;
 use factrs::core::{BetweenResidual, Graph, Huber, LevenMarquardt, PriorResidual, Values, SE3};
@@ -139,7 +139,8 @@ fn measure_edge(
     };
     let source = Cloud::new(prepared[j].icp.clone());
     let target = Cloud::new(prepared[i].icp.clone());
-    let z = refine::refine(&source, &target, &start, &cfg)?.transform;
+    let pair = PreparedPair::new(&source, &target, cfg.neighbors, cfg.epsilon)?;
+    let z = refine::refine_prepared_pose(&pair, &start, &cfg)?.transform;
     let overlap = overlap_share(prepared, j, &z, &[i], &[Rigid::identity()], OVERLAP_SAMPLE);
     let moved_deg = crate::transform::rotation_angle_deg(&z.rotation, &start.rotation);
     let moved_distance = (z.translation - start.translation).norm();

@@ -11,12 +11,12 @@ use super::graph::{icp_distance, Edge};
 use super::scan::Prepared;
 use crate::cloud::Cloud;
 use crate::error::Result;
-use crate::refine::{self, CorrespondenceDistance, RefineConfig};
+use crate::refine::{self, CorrespondenceDistance, PreparedPair, RefineConfig};
 use crate::transform::Rigid;
 use rayon::prelude::*;
 
 /// Rounds of the joint refinement.
-pub const JOINT_ROUNDS: usize = 3;
+pub const JOINT_ROUNDS: usize = 2;
 
 /// The scans sharing an accepted edge with `i`, in index order.
 fn neighbours(i: usize, edges: &[Edge]) -> Vec<usize> {
@@ -76,6 +76,8 @@ fn refine_one(
         ..*refine_cfg
     };
     let source = Cloud::new(prepared[i].icp.clone());
-    let r = refine::refine(&source, &Cloud::new(target), &pose, &cfg)?;
-    Ok(Some(r.transform))
+    let pair = PreparedPair::new(&source, &Cloud::new(target), cfg.neighbors, cfg.epsilon)?;
+    Ok(Some(
+        refine::refine_prepared_pose(&pair, &pose, &cfg)?.transform,
+    ))
 }

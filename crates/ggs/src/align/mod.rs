@@ -202,13 +202,7 @@ impl Aligner {
         let mut times = self.times;
         times.place_ms = ms(self.started) - times.prepare_ms;
         let prepared = &self.growth.prepared;
-        let refine_cfg = self
-            .settings
-            .refine_config(runtime.threads)
-            .unwrap_or(RefineConfig {
-                threads: runtime.threads,
-                ..RefineConfig::default()
-            });
+        let refine_cfg = alignment_refine_config(&self.settings, runtime.threads);
         let t = Instant::now();
         let poses = &self.growth.poses;
         let (edges, optimized) = crate::threads::in_pool(runtime.threads, || {
@@ -240,6 +234,22 @@ impl Aligner {
             &self.settings,
             times,
         ))
+    }
+}
+
+/// The ICP of the pose graph's edges and of the joint refinement: the final refinement's
+/// (GICP when `refine` is none), stopped as the final refinement is: when an update turns by
+/// less than `refine_min_step` radians and moves by less than `refine_min_step` × the scan's
+/// radius.
+fn alignment_refine_config(settings: &Settings, threads: usize) -> RefineConfig {
+    let r = settings.refine_config(threads).unwrap_or(RefineConfig {
+        threads,
+        ..RefineConfig::default()
+    });
+    RefineConfig {
+        min_rotation_step: r.min_rotation_step.max(settings.refine_min_step),
+        min_translation_step: r.min_translation_step.max(settings.refine_min_step),
+        ..r
     }
 }
 
