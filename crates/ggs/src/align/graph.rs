@@ -86,17 +86,21 @@ pub fn measure_edges(
     refine_cfg: &RefineConfig,
 ) -> Result<Vec<Edge>> {
     let placed: Vec<usize> = (0..poses.len()).filter(|&i| poses[i].is_some()).collect();
-    let mut candidates = Vec::new();
-    for (a, &i) in placed.iter().enumerate() {
-        for &j in &placed[a + 1..] {
+    let pairs: Vec<(usize, usize)> = placed
+        .iter()
+        .enumerate()
+        .flat_map(|(a, &i)| placed[a + 1..].iter().map(move |&j| (i, j)))
+        .collect();
+    let candidates: Vec<(usize, usize, f64)> = pairs
+        .par_iter()
+        .map(|&(i, j)| {
             let (pi, pj) = (poses[i].unwrap(), poses[j].unwrap());
             let share = overlap_share(prepared, j, &pj, &[i], &[pi], EDGE_SAMPLE)
                 .max(overlap_share(prepared, i, &pi, &[j], &[pj], EDGE_SAMPLE));
-            if share >= EDGE_MIN_OVERLAP {
-                candidates.push((i, j, share));
-            }
-        }
-    }
+            (i, j, share)
+        })
+        .filter(|c| c.2 >= EDGE_MIN_OVERLAP)
+        .collect();
     let pairs = strongest_per_scan(&candidates, poses.len());
     pairs
         .par_iter()

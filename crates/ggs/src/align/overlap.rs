@@ -2,6 +2,7 @@
 
 use super::scan::Prepared;
 use crate::transform::Rigid;
+use rayon::prelude::*;
 
 /// The overlap distance, in point spacings of the coarser of the two clouds compared: a
 /// point is in the overlap when a point of the other cloud lies this close.
@@ -38,13 +39,16 @@ pub fn overlap_share(
         })
         .collect();
     let step = pts.len().div_ceil(sample.max(1)).max(1);
-    let (mut near, mut n) = (0usize, 0usize);
-    for p in pts.iter().step_by(step) {
-        n += 1;
-        let hit = to_other
-            .iter()
-            .any(|(q, m, d2)| q.index.nearest_within(&m.apply(p), *d2).is_some());
-        near += hit as usize;
-    }
+    let n = pts.len().div_ceil(step);
+    // A count of hits: the same on any number of threads.
+    let near: usize = (0..n)
+        .into_par_iter()
+        .filter(|&k| {
+            let p = &pts[k * step];
+            to_other
+                .iter()
+                .any(|(q, m, d2)| q.index.nearest_within(&m.apply(p), *d2).is_some())
+        })
+        .count();
     near as f64 / n as f64
 }
