@@ -278,9 +278,9 @@ pub(super) fn verify_hypotheses(
                 .iter()
                 .take_while(|(_, level)| *level == HypothesisLevel::Voxel)
                 .count();
-            (own, gate)
+            (own, gate.max(v.least_score))
         }
-        VerifyPass::All => (todo.len(), 0.0),
+        VerifyPass::All => (todo.len(), v.least_score),
     };
     let checks = RankedChecks {
         ready,
@@ -341,7 +341,8 @@ struct RankedChecks<'r> {
     /// The least "best so far" a check compares with: the first look only looks for a pose
     /// scoring its gate, so a hypothesis below `reject_ratio` × the gate at its check is
     /// dropped there, as the whole verification drops one below `reject_ratio` × the best so
-    /// far (0 in the whole verification).
+    /// far (the floor of the whole verification is [`VerifyConfig::least_score`], 0 unless
+    /// the caller needs a score).
     floor: f64,
 }
 
@@ -487,7 +488,8 @@ fn best_scoring(out: &[VerifiedHypothesis], eligible: impl Fn(usize) -> bool) ->
     })
 }
 
-/// When two distinct poses both score at least `reject_ratio` × the best, refines each
+/// When two distinct poses both score at least `reject_ratio` × the best (or ×
+/// [`VerifyConfig::least_score`] when that is more), refines each
 /// contender again on clouds thinned to the finer cells of `fine_cell_voxels` (built only
 /// then, `finer`) for `fine_iterations`, and re-scores it: on the coarser cells a right pose
 /// of a small overlap stops short (too few points where the clouds overlap) and loses to a
@@ -504,7 +506,10 @@ fn settle_contested(
     if v.fine_cell_voxels <= 0.0 || v.fine_iterations == 0 {
         return Ok(());
     }
-    let best = out.iter().map(|h| h.evidence.score).fold(0.0, f64::max);
+    let best = out
+        .iter()
+        .map(|h| h.evidence.score)
+        .fold(v.least_score, f64::max);
     let contenders: Vec<usize> = (0..out.len())
         .filter(|&k| {
             !out[k].rejected_early

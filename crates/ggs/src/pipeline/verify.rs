@@ -126,6 +126,11 @@ pub struct VerifyConfig {
     /// The free-space margin `m` in voxels: a point violates the free space when it lies at
     /// least this far in front of the nearest surface seen in its direction.
     pub free_space_margin_voxels: f64,
+    /// The least score a pose must reach to be of use to the caller (0: any). A hypothesis
+    /// scoring below `reject_ratio` × the larger of this and the best so far at its check
+    /// stops there, and only poses at or above `reject_ratio` × it are contested. Not a
+    /// setting: [`crate::align`] sets it from the overlap a placement needs.
+    pub least_score: f64,
 }
 
 /// How a point within `D` of the other cloud counts in the verification score.
@@ -183,6 +188,7 @@ impl Default for VerifyConfig {
             free_space_weight: 10.0,
             free_space_tolerance: 0.02,
             free_space_margin_voxels: 1.0,
+            least_score: 0.0,
         }
     }
 }

@@ -142,6 +142,7 @@ impl Settings {
             free_space_weight: self.free_space_weight,
             free_space_tolerance: self.free_space_tolerance,
             free_space_margin_voxels: self.free_space_margin,
+            least_score: 0.0,
         }
     }
 
