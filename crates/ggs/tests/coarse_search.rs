@@ -485,6 +485,37 @@ fn coarse_to_fine_finds_the_exhaustive_answer() {
 }
 
 #[test]
+fn stopping_when_the_winner_holds_ends_the_widening_of_a_flat_ranking() {
+    // A bunny scan onto a cloud of another shape: no rotation stands out at the coarse
+    // level, so the plain rule doubles the kept list round after round (here until every
+    // rotation is scored); stopping once a doubling leaves the winner where it was scores
+    // fewer rotations in fewer rounds.
+    let dir = common::repo_root().join("tests/data");
+    let source = read_cloud(&dir.join("bun0.pcd"), None).unwrap().cloud;
+    let target = random_cloud(32, 3000);
+    let run = |stop: bool| {
+        let c2f = CoarseToFine {
+            stop_when_winner_holds: stop,
+            ..CoarseToFine::default()
+        };
+        let cfg = with_mode(0.01, SearchMode::CoarseToFine(c2f), Precision::Mixed, 1);
+        coarse_register(&source, &target, limited15(), &cfg)
+            .unwrap()
+            .stats
+    };
+    let (plain, held) = (run(false), run(true));
+    let rounds = |s: &ggs::coarse::SearchStats| s.coarse_level.as_ref().unwrap().rounds;
+    assert!(rounds(&plain) >= 3, "plain: {} rounds", rounds(&plain));
+    assert!(rounds(&held) < rounds(&plain), "{} rounds", rounds(&held));
+    assert!(
+        held.scored < plain.scored,
+        "{} ≥ {}",
+        held.scored,
+        plain.scored
+    );
+}
+
+#[test]
 fn coarse_to_fine_recovers_grid_rotations() {
     let c2f = SearchMode::CoarseToFine(CoarseToFine::default());
     for (seed, k) in [(11u64, 5usize), (12, 400), (13, 1234), (14, 1885)] {

@@ -65,13 +65,19 @@ pub const LEAST_SCORE_PER_OVERLAP: f64 = 0.5;
 /// on `runtime`, without the final refinement when it verifies its hypotheses (the pose
 /// graph and the joint refinement refine every scan by ICP afterwards; where no
 /// verification runs, the final refinement stays: it is then the registration's only ICP),
-/// and with a verification that drops, at their checks, the poses too weak to place a scan
-/// ([`LEAST_SCORE_PER_OVERLAP`] × `align_min_overlap`).
+/// with a verification that drops, at their checks, the poses too weak to place a scan
+/// ([`LEAST_SCORE_PER_OVERLAP`] × `align_min_overlap`), and with a coarse-to-fine search that
+/// stops widening once a doubling of its kept rotations leaves the winner unchanged
+/// ([`CoarseToFine::stop_when_winner_holds`](crate::coarse::CoarseToFine)): a scan that fits
+/// nowhere (another object's) would otherwise have every rotation scored at the voxel size.
 pub fn placement_plan(settings: &Settings, runtime: &Runtime) -> Result<RegistrationConfig> {
     let mut cfg = settings.plan_with(runtime)?;
     if let Some(v) = cfg.verify.as_mut() {
         v.least_score = LEAST_SCORE_PER_OVERLAP * settings.align_min_overlap;
         cfg.refine = None;
+    }
+    if let crate::coarse::SearchMode::CoarseToFine(c) = &mut cfg.search.mode {
+        c.stop_when_winner_holds = true;
     }
     Ok(cfg)
 }
@@ -312,6 +318,7 @@ fn report(
         .map(|p| p.map(|p| to_frame.compose(&p)))
         .collect();
     poses[frame] = Some(Rigid::identity());
+    warnings.extend(contradictions(scans, &o.edges, &poses));
     let out = (0..scans.len())
         .map(|i| scan_pose(i, scans, prepared, growth, &poses, &o))
         .collect();
@@ -328,6 +335,31 @@ fn report(
         times,
         settings: settings.to_json(),
     }
+}
+
+/// A warning for each edge between two placed scans that contradicts their placements
+/// ([`graph::Edge::contradicts`]).
+fn contradictions(
+    scans: &[AlignScan],
+    edges: &[graph::Edge],
+    poses: &[Option<Rigid>],
+) -> Vec<String> {
+    edges
+        .iter()
+        .filter(|e| e.contradicts() && poses[e.from].is_some() && poses[e.to].is_some())
+        .map(|e| {
+            format!(
+                "{} and {} overlap by {:.0} % but ICP moves their relative pose by {:.1}° \
+                 and {:.3}: one of them is probably placed wrong (a near-symmetric object can \
+                 fit turned)",
+                scans[e.from].name,
+                scans[e.to].name,
+                e.overlap * 100.0,
+                e.moved_deg,
+                e.moved_distance
+            )
+        })
+        .collect()
 }
 
 /// The placed scans that an accepted edge joins to another (all of them when only one is
@@ -401,5 +433,49 @@ fn unplaced(s: &AlignScan, reason: &str) -> ScanPose {
         confidence: 0.0,
         overlap: 0.0,
         reason: Some(reason.to_string()),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn edge(from: usize, to: usize, overlap: f64, accepted: bool) -> graph::Edge {
+        graph::Edge {
+            from,
+            to,
+            relative: Rigid::identity(),
+            overlap,
+            moved_deg: 3.5,
+            moved_distance: 0.04,
+            accepted,
+            reason: None,
+        }
+    }
+
+    #[test]
+    fn a_rejected_edge_of_a_large_overlap_between_placed_scans_is_a_warning() {
+        let scans: Vec<AlignScan> = (0..4)
+            .map(|k| AlignScan {
+                name: format!("s{k}.ply"),
+                cloud: Cloud::new(vec![[0.0; 3]]),
+            })
+            .collect();
+        let placed = Some(Rigid::identity());
+        let poses = [placed, placed, placed, None];
+        let edges = [
+            edge(0, 1, 0.45, false),
+            edge(0, 2, 0.45, true),
+            edge(1, 2, 0.2, false),
+            edge(2, 3, 0.6, false),
+        ];
+        let w = contradictions(&scans, &edges, &poses);
+        assert_eq!(w.len(), 1, "{w:?}");
+        assert!(
+            w[0].starts_with("s0.ply and s1.ply overlap by 45 %"),
+            "{}",
+            w[0]
+        );
+        assert!(w[0].contains("3.5° and 0.040"), "{}", w[0]);
     }
 }

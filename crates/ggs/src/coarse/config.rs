@@ -68,6 +68,12 @@ pub struct CoarseToFine {
     /// the right pose higher on low-overlap pairs (docs/pipeline.md, "Coarse-level
     /// hypotheses"). 0: none.
     pub hypotheses: usize,
+    /// Stop doubling the kept list as soon as a doubling leaves the winner where it was.
+    /// False (the registration's rule): double while the winner ranks in the lower half of
+    /// the kept list, which finds the exhaustive search's winner but can score every
+    /// rotation when the coarse ranking is flat (a scan that fits nowhere). The alignment's
+    /// whole searches stop early: a scan they do not place is tried again on a larger model.
+    pub stop_when_winner_holds: bool,
 }
 
 impl SearchMode {
@@ -109,6 +115,7 @@ impl Default for CoarseToFine {
             keep_min: 16,
             neighbour_deg: None,
             hypotheses: 0,
+            stop_when_winner_holds: false,
         }
     }
 }

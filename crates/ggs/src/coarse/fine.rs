@@ -1,7 +1,7 @@
 //! The level at the voxel size: rounds of scoring, the exact winner, the distinct
 //! hypotheses, and each argmax turned into a transform.
 
-use super::config::{Precision, SearchConfig};
+use super::config::{Precision, SearchConfig, SearchMode};
 use super::correlator::{Backend, Correlator, PassControl, Scores};
 use super::extents::{geometry_for, rotated_boxes, RotatedBox};
 use super::levels::kept_with_neighbours;
@@ -56,8 +56,9 @@ impl<'p> FineLevel<'p> {
     }
 
     /// Rounds at the voxel size: all rotations (exhaustive), or the kept ones and their
-    /// neighbours, with `kept` doubled while the winner ranks in the lower half of it.
-    /// Returns the winner.
+    /// neighbours, with `kept` doubled while the winner ranks in the lower half of it (and,
+    /// with [`stop_when_winner_holds`](super::CoarseToFine::stop_when_winner_holds), only
+    /// while a doubling moves the winner). Returns the winner.
     pub(super) fn rounds(
         &mut self,
         backend: &dyn Backend,
@@ -69,6 +70,11 @@ impl<'p> FineLevel<'p> {
     ) -> Result<usize> {
         let n = self.prep.rows.len();
         let mut keep = coarse.as_ref().map_or(n, |l| l.kept);
+        let stop_when_held = match &cfg.mode {
+            SearchMode::CoarseToFine(c) => c.stop_when_winner_holds,
+            SearchMode::Exhaustive => false,
+        };
+        let mut previous = None;
         loop {
             let wanted = match &coarse {
                 None => (0..n).collect::<Vec<_>>(),
@@ -82,8 +88,10 @@ impl<'p> FineLevel<'p> {
                 level.winner_rank = level.rank_of(w);
                 // A winner deep in the kept list means the coarse ranking is not clear for
                 // this pair: look twice as far.
-                if level.rank_of(w) * 2 > keep && self.scored.iter().any(|&d| !d) {
+                let held = stop_when_held && previous == Some(w);
+                if level.rank_of(w) * 2 > keep && self.scored.iter().any(|&d| !d) && !held {
                     keep = (keep * 2).min(n);
+                    previous = Some(w);
                     continue;
                 }
             }

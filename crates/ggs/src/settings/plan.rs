@@ -120,6 +120,7 @@ impl Settings {
             keep_min: self.coarse_keep_min,
             neighbour_deg: self.coarse_neighbour,
             hypotheses: self.coarse_hypotheses,
+            stop_when_winner_holds: false,
         }
     }
 
