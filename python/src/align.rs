@@ -187,12 +187,13 @@ impl Aligner {
     }
 
     /// The next batch: `(scan index, model points, quick)` per registration; empty when
-    /// the placement is done.
+    /// the placement is done (when none is left, the placements are checked against each
+    /// other first, and a contradicted one is withdrawn and tried again).
     fn next_jobs<'py>(
         &mut self,
         py: Python<'py>,
     ) -> PyResult<Vec<(usize, Bound<'py, PyAny>, bool)>> {
-        self.pending = self.core.next_jobs();
+        self.pending = py.detach(|| self.core.next_jobs()).map_err(to_py_err)?;
         self.pending
             .iter()
             .map(|j| Ok((j.scan, points_array(py, &j.model_points)?, j.quick)))

@@ -11,7 +11,10 @@
 //!    instead of the `N(N − 1)/2` of every pair.
 //! 3. **Pose graph** ([`graph`]): every pair of placed scans that overlap gets an edge
 //!    measured by ICP; edges that disagree with the placements (a cycle that does not close)
-//!    are rejected; the poses are optimized over the accepted edges with a robust kernel.
+//!    are rejected. An edge between scans that overlap much and whose ICP turns their
+//!    relative pose by a degree or more contradicts a placement: the later placed of its two
+//!    scans is withdrawn and step 2 resumes. Then the poses are optimized over the accepted
+//!    edges with a robust kernel.
 //! 4. **Joint refinement** ([`joint`]): each scan refined against all its neighbours at once.
 //!
 //! Every step is deterministic and independent of the thread count; the batch of
@@ -112,6 +115,10 @@ pub struct Aligner {
     growth: placement::Growth,
     seed: usize,
     anchor: usize,
+    /// Threads of the edges' ICP.
+    threads: usize,
+    /// The pose graph's edges measured when no job was left, if no placement changed since.
+    checked: Option<Vec<graph::Edge>>,
     started: Instant,
     times: AlignTimes,
 }
@@ -156,6 +163,8 @@ impl Aligner {
             growth: placement::Growth::new(prepared, seed, rules),
             seed,
             anchor,
+            threads: runtime.threads,
+            checked: None,
             started,
             times,
         })
@@ -176,9 +185,56 @@ impl Aligner {
         self.growth.poses.iter().flatten().count()
     }
 
-    /// The next batch of registrations; empty when the placement is done.
-    pub fn next_jobs(&mut self) -> Vec<PlacementJob> {
-        self.growth.next_jobs()
+    /// The next batch of registrations; empty when the placement is done. When no
+    /// registration is left, the pose graph's edges are measured: the later placed scan of
+    /// each edge that contradicts the placements ([`graph::Edge::contradicts`]) is withdrawn
+    /// ([`placement::Growth::withdraw`]) and the placement resumes; else the edges are kept
+    /// for [`Aligner::finish`].
+    pub fn next_jobs(&mut self) -> Result<Vec<PlacementJob>> {
+        loop {
+            let jobs = self.growth.next_jobs();
+            if !jobs.is_empty() {
+                self.checked = None;
+                return Ok(jobs);
+            }
+            let t = Instant::now();
+            let edges = self.measure_edges()?;
+            self.times.graph_ms += ms(t);
+            if self.withdraw_contradicted(&edges) == 0 {
+                self.checked = Some(edges);
+                return Ok(Vec::new());
+            }
+        }
+    }
+
+    fn measure_edges(&self) -> Result<Vec<graph::Edge>> {
+        let refine_cfg = alignment_refine_config(&self.settings, self.threads);
+        let (prepared, poses) = (&self.growth.prepared, &self.growth.poses);
+        crate::threads::in_pool(self.threads, || {
+            graph::measure_edges(prepared, poses, &refine_cfg)
+        })?
+    }
+
+    /// Withdraw the later placed scan of each contradicting edge; returns how many.
+    fn withdraw_contradicted(&mut self, edges: &[graph::Edge]) -> usize {
+        let contradicting: Vec<&graph::Edge> = edges.iter().filter(|e| e.contradicts()).collect();
+        let pairs: Vec<(usize, usize)> = contradicting.iter().map(|e| (e.from, e.to)).collect();
+        let later = self.growth.later_placed(&pairs);
+        for &u in &later {
+            let e = contradicting
+                .iter()
+                .find(|e| e.from == u || e.to == u)
+                .expect("a contradicting edge of u");
+            let other = &self.scans[if e.from == u { e.to } else { e.from }].name;
+            let why = format!("its placement contradicted {other}'s: {}", contradiction(e));
+            let note = format!(
+                "{} was withdrawn and tried again: {why} (a near-symmetric object can fit turned)",
+                self.scans[u].name
+            );
+            self.growth.withdrawal_notes.push(note);
+            self.growth.withdraw(u, why);
+        }
+        later.len()
     }
 
     /// The outcomes of `jobs` (as [`Aligner::next_jobs`] gave them), in job order.
@@ -201,7 +257,7 @@ impl Aligner {
         mut on_job: impl FnMut(&AlignScan, usize),
     ) -> Result<Alignment> {
         loop {
-            let jobs = self.next_jobs();
+            let jobs = self.next_jobs()?;
             if jobs.is_empty() {
                 return self.finish(runtime);
             }
@@ -218,17 +274,19 @@ impl Aligner {
     /// The pose graph, the joint refinement and the result, once no job is left.
     pub fn finish(&self, runtime: &Runtime) -> Result<Alignment> {
         let mut times = self.times;
-        times.place_ms = ms(self.started) - times.prepare_ms;
+        times.place_ms = ms(self.started) - times.prepare_ms - times.graph_ms;
         let prepared = &self.growth.prepared;
         let refine_cfg = alignment_refine_config(&self.settings, runtime.threads);
         let t = Instant::now();
         let poses = &self.growth.poses;
-        let (edges, optimized) = crate::threads::in_pool(runtime.threads, || {
-            let edges = graph::measure_edges(prepared, poses, &refine_cfg)?;
-            let optimized = graph::optimize_poses(prepared, poses, &edges, self.seed);
-            Ok::<_, GgsError>((edges, optimized))
-        })??;
-        times.graph_ms = ms(t);
+        let edges = match &self.checked {
+            Some(edges) => edges.clone(),
+            None => self.measure_edges()?,
+        };
+        let optimized = crate::threads::in_pool(runtime.threads, || {
+            graph::optimize_poses(prepared, poses, &edges, self.seed)
+        })?;
+        times.graph_ms += ms(t);
         let t = Instant::now();
         let graph_failed = optimized.is_none();
         let optimized = optimized.unwrap_or_else(|| poses.clone());
@@ -318,7 +376,7 @@ fn report(
         .map(|p| p.map(|p| to_frame.compose(&p)))
         .collect();
     poses[frame] = Some(Rigid::identity());
-    warnings.extend(contradictions(scans, &o.edges, &poses));
+    warnings.extend(growth.withdrawal_notes.iter().cloned());
     let out = (0..scans.len())
         .map(|i| scan_pose(i, scans, prepared, growth, &poses, &o))
         .collect();
@@ -337,29 +395,14 @@ fn report(
     }
 }
 
-/// A warning for each edge between two placed scans that contradicts their placements
-/// ([`graph::Edge::contradicts`]).
-fn contradictions(
-    scans: &[AlignScan],
-    edges: &[graph::Edge],
-    poses: &[Option<Rigid>],
-) -> Vec<String> {
-    edges
-        .iter()
-        .filter(|e| e.contradicts() && poses[e.from].is_some() && poses[e.to].is_some())
-        .map(|e| {
-            format!(
-                "{} and {} overlap by {:.0} % but ICP moves their relative pose by {:.1}° \
-                 and {:.3}: one of them is probably placed wrong (a near-symmetric object can \
-                 fit turned)",
-                scans[e.from].name,
-                scans[e.to].name,
-                e.overlap * 100.0,
-                e.moved_deg,
-                e.moved_distance
-            )
-        })
-        .collect()
+/// What a contradicting edge measured.
+fn contradiction(e: &graph::Edge) -> String {
+    format!(
+        "they overlap by {:.0} % but ICP moves their relative pose by {:.1}° and {:.3}",
+        e.overlap * 100.0,
+        e.moved_deg,
+        e.moved_distance
+    )
 }
 
 /// The placed scans that an accepted edge joins to another (all of them when only one is
@@ -405,7 +448,9 @@ fn scan_pose(
             return unplaced(s, "placed, but no other scan's overlap confirms its pose");
         }
         let last = growth.attempts.iter().rev().find(|a| a.scan == i);
-        let reason = last.and_then(|a| a.reason.clone());
+        let reason = last
+            .and_then(|a| a.reason.clone())
+            .or_else(|| growth.withdrawn[i].clone());
         return unplaced(s, &reason.unwrap_or_else(|| "never tried".into()));
     };
     let others: Vec<usize> = (0..poses.len())
@@ -440,42 +485,37 @@ fn unplaced(s: &AlignScan, reason: &str) -> ScanPose {
 mod tests {
     use super::*;
 
-    fn edge(from: usize, to: usize, overlap: f64, accepted: bool) -> graph::Edge {
-        graph::Edge {
-            from,
-            to,
+    #[test]
+    fn a_contradiction_says_what_the_edge_measured() {
+        let e = graph::Edge {
+            from: 0,
+            to: 1,
             relative: Rigid::identity(),
-            overlap,
+            overlap: 0.45,
             moved_deg: 3.5,
             moved_distance: 0.04,
-            accepted,
+            accepted: false,
             reason: None,
-        }
-    }
-
-    #[test]
-    fn a_rejected_edge_of_a_large_overlap_between_placed_scans_is_a_warning() {
-        let scans: Vec<AlignScan> = (0..4)
-            .map(|k| AlignScan {
-                name: format!("s{k}.ply"),
-                cloud: Cloud::new(vec![[0.0; 3]]),
-            })
-            .collect();
-        let placed = Some(Rigid::identity());
-        let poses = [placed, placed, placed, None];
-        let edges = [
-            edge(0, 1, 0.45, false),
-            edge(0, 2, 0.45, true),
-            edge(1, 2, 0.2, false),
-            edge(2, 3, 0.6, false),
-        ];
-        let w = contradictions(&scans, &edges, &poses);
-        assert_eq!(w.len(), 1, "{w:?}");
-        assert!(
-            w[0].starts_with("s0.ply and s1.ply overlap by 45 %"),
-            "{}",
-            w[0]
+        };
+        assert!(e.contradicts());
+        let text = contradiction(&e);
+        assert_eq!(
+            text,
+            "they overlap by 45 % but ICP moves their relative pose by 3.5° and 0.040"
         );
-        assert!(w[0].contains("3.5° and 0.040"), "{}", w[0]);
+        // An accepted edge contradicts as well; a small overlap or a small turn does not.
+        let accepted = graph::Edge {
+            accepted: true,
+            ..e.clone()
+        };
+        let small = graph::Edge {
+            overlap: 0.2,
+            ..e.clone()
+        };
+        let slight = graph::Edge {
+            moved_deg: 0.6,
+            ..e
+        };
+        assert!(accepted.contradicts() && !small.contradicts() && !slight.contradicts());
     }
 }

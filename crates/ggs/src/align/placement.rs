@@ -10,8 +10,12 @@
 //! `align_min_confidence`, and at least `align_min_overlap` of the scan's points (at least
 //! [`QUICK_MIN_OVERLAP`] for a quick try, and at least [`MIN_OVERLAP_POINTS`] points) then
 //! lie within the overlap distance of the model; otherwise the scan waits, and is tried
-//! again only onto another model. The run ends when no scan is left to try: the scans never
-//! placed are reported unplaced, not forced in.
+//! again only onto another model. When no scan is left to try, the placements are checked
+//! against each other (the caller measures the pose graph's edges): of two placed scans
+//! whose placements contradict each other, the one placed later is withdrawn
+//! ([`Growth::withdraw`]) and waits again, up to [`MAX_WITHDRAWALS`] times. The run ends
+//! when no scan is left to try and no placement is contradicted: the scans never placed are
+//! reported unplaced, not forced in.
 //!
 //! Every choice depends on the scans and the settings only: the jobs of a batch are fixed
 //! before any of them runs and their outcomes are recorded in job order, so running a
@@ -32,6 +36,8 @@ pub const QUICK_MIN_OVERLAP: f64 = 0.6;
 /// A placement needs at least this many of the scan's (thinned) points on the model: a scan
 /// of a handful of points fits anywhere.
 pub const MIN_OVERLAP_POINTS: f64 = 100.0;
+/// A scan withdrawn this many times is not tried again: it is reported unplaced.
+pub const MAX_WITHDRAWALS: usize = 2;
 
 /// What decides the placements (from the settings, see [`crate::Settings`]'s `align_*` keys).
 #[derive(Debug, Clone, Copy)]
@@ -136,6 +142,14 @@ pub struct Growth {
     full_model: Vec<Option<Vec<usize>>>,
     /// Tries that did not place each scan.
     failures: Vec<usize>,
+    /// When each placed scan was placed (0: the anchor), for [`Growth::later_placed`].
+    placed_at: Vec<usize>,
+    placements: usize,
+    /// Times each scan was withdrawn, and why it was last (while it waits).
+    withdrawals: Vec<usize>,
+    pub withdrawn: Vec<Option<String>>,
+    /// One line per withdrawal, for the alignment's warnings.
+    pub withdrawal_notes: Vec<String>,
     pub attempts: Vec<Attempt>,
 }
 
@@ -154,6 +168,11 @@ impl Growth {
             quick_model: vec![None; n],
             full_model: vec![None; n],
             failures: vec![0; n],
+            placed_at: vec![0; n],
+            placements: 1,
+            withdrawals: vec![0; n],
+            withdrawn: vec![None; n],
+            withdrawal_notes: Vec::new(),
             attempts: Vec::new(),
         }
     }
@@ -233,6 +252,7 @@ impl Growth {
         };
         let mut order: Vec<(usize, f64, usize)> = (0..self.poses.len())
             .filter(|&u| self.poses[u].is_none() && tried[u] < placed.len())
+            .filter(|&u| self.withdrawals[u] < MAX_WITHDRAWALS)
             .map(|u| {
                 let failures = if quick { self.failures[u] } else { 0 };
                 (failures, self.nearest_placed(u, placed), u)
@@ -303,7 +323,12 @@ impl Growth {
             None
         };
         match reason {
-            None => self.poses[u] = Some(outcome.transform),
+            None => {
+                self.poses[u] = Some(outcome.transform);
+                self.placed_at[u] = self.placements;
+                self.placements += 1;
+                self.withdrawn[u] = None;
+            }
             Some(_) => self.failures[u] += 1,
         }
         self.attempts.push(Attempt {
@@ -319,6 +344,38 @@ impl Growth {
             warnings: outcome.warnings,
             ms: outcome.ms,
         });
+    }
+
+    /// Of each pair of placed scans `(a, b)` whose placements contradict each other, the one
+    /// placed later: a wrong placement passes to the scans placed onto it afterwards, never
+    /// to those placed before it. Increasing, without repeats.
+    pub fn later_placed(&self, pairs: &[(usize, usize)]) -> Vec<usize> {
+        let mut later: Vec<usize> = pairs
+            .iter()
+            .filter(|&&(a, b)| self.poses[a].is_some() && self.poses[b].is_some())
+            .map(|&(a, b)| {
+                if self.placed_at[a] > self.placed_at[b] {
+                    a
+                } else {
+                    b
+                }
+            })
+            .collect();
+        later.sort_unstable();
+        later.dedup();
+        later
+    }
+
+    /// Take placed scan `u` out of the model for `reason`: it waits again, to be tried onto
+    /// any model (quickly first), unless this is its [`MAX_WITHDRAWALS`]th withdrawal.
+    pub fn withdraw(&mut self, u: usize, reason: String) {
+        self.poses[u] = None;
+        self.withdrawals[u] += 1;
+        self.withdrawn[u] = Some(reason);
+        self.quick_tried_with[u] = 0;
+        self.full_tried_with[u] = 0;
+        self.quick_model[u] = None;
+        self.full_model[u] = None;
     }
 
     /// The least overlap that places a scan: `align_min_overlap`, and at least
@@ -417,6 +474,50 @@ mod tests {
             .as_deref()
             .unwrap()
             .contains("confidence 0.10"));
+    }
+
+    #[test]
+    fn the_later_placed_scan_of_a_contradiction_is_withdrawn_and_tried_again_once() {
+        // Whole searches only: the same patch and the larger one (44 % of it on the seed)
+        // are placed, the line is not.
+        let whole = PlacementRules {
+            quick_first: false,
+            ..rules(1)
+        };
+        let mut g = Growth::new(prepared(), 0, whole);
+        for _ in 0..3 {
+            let job = g.next_jobs().remove(0);
+            g.record(&job, outcome(true, 0.9));
+        }
+        let placed: Vec<usize> = g
+            .attempts
+            .iter()
+            .filter(|a| a.placed)
+            .map(|a| a.scan)
+            .collect();
+        assert_eq!(placed.len(), 2, "{:?}", g.attempts);
+        let (first, second) = (placed[0], placed[1]);
+        // The anchor (0) was placed first, then `first`, then `second`.
+        assert_eq!(
+            g.later_placed(&[(0, second), (second, first)]),
+            vec![second]
+        );
+        let mut both = vec![first, second];
+        both.sort_unstable();
+        assert_eq!(g.later_placed(&[(first, 0), (second, first)]), both);
+        for round in 1..=MAX_WITHDRAWALS {
+            g.withdraw(second, "contradicted".into());
+            assert!(g.poses[second].is_none() && g.withdrawn[second].is_some());
+            let jobs = g.next_jobs();
+            if round < MAX_WITHDRAWALS {
+                // Tried again, onto the same model as before.
+                assert_eq!(jobs[0].scan, second, "{jobs:?}");
+                g.record(&jobs[0], outcome(true, 0.9));
+                assert!(g.poses[second].is_some() && g.withdrawn[second].is_none());
+            } else {
+                assert!(jobs.iter().all(|j| j.scan != second), "{jobs:?}");
+            }
+        }
     }
 
     #[test]
