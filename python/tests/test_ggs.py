@@ -280,17 +280,24 @@ def test_gil_is_released_during_registration():
 
 def test_ctrl_c_interrupts_a_long_search():
     import _thread
+    import signal
 
     source, target = bunny_small()
+    # A process started in the background by a shell without job control inherits SIGINT
+    # ignored, and then interrupt_main does nothing: Python's own handler is put back here.
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
     timer = threading.Timer(0.3, _thread.interrupt_main)
     finished = 0
     timer.start()
-    with pytest.raises(KeyboardInterrupt):
-        # One exhaustive full15 search at 2 mm on one thread scores 6364 rotations on grids
-        # of ~80³: far longer than 0.3 s on any machine.
-        for _ in range(50):
-            ggs.register(source, target, voxel=0.002, rotations="full15", search="exhaustive", threads=1)
-            finished += 1
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            # One exhaustive full15 search at 2 mm on one thread scores 6364 rotations on
+            # grids of ~80³: far longer than 0.3 s on any machine.
+            for _ in range(50):
+                ggs.register(source, target, voxel=0.002, rotations="full15", search="exhaustive", threads=1)
+                finished += 1
+    finally:
+        signal.signal(signal.SIGINT, previous)
     # The interrupt stopped the first search from inside; it did not wait for it to end.
     assert finished == 0
 
