@@ -237,3 +237,89 @@ fn generated_pairs_register() {
     }
     std::fs::remove_dir_all(dir).unwrap();
 }
+
+/// A seeded room, 8 × 6 × 3 m: floor, four walls, and a few boxes on the floor, 5 cm apart
+/// on average, written as a PLY file.
+fn room(dir: &Path) -> PathBuf {
+    let mut rng = common::Lcg(41);
+    let mut pts = Vec::new();
+    let mut face = |o: [f64; 3], u: [f64; 3], v: [f64; 3], n: usize| {
+        for _ in 0..n {
+            let (a, b) = (rng.next_f64(), rng.next_f64());
+            pts.push([0, 1, 2].map(|k| o[k] + a * u[k] + b * v[k]));
+        }
+    };
+    face([0.0; 3], [8.0, 0.0, 0.0], [0.0, 6.0, 0.0], 19_200);
+    face([0.0; 3], [8.0, 0.0, 0.0], [0.0, 0.0, 3.0], 9_600);
+    face([0.0, 6.0, 0.0], [8.0, 0.0, 0.0], [0.0, 0.0, 3.0], 9_600);
+    face([0.0; 3], [0.0, 6.0, 0.0], [0.0, 0.0, 3.0], 7_200);
+    face([8.0, 0.0, 0.0], [0.0, 6.0, 0.0], [0.0, 0.0, 3.0], 7_200);
+    for (x, y, h) in [
+        (1.0, 1.0, 0.8),
+        (5.5, 1.5, 1.2),
+        (3.0, 4.0, 0.5),
+        (6.5, 4.5, 2.0),
+    ] {
+        face([x, y, h], [0.6, 0.0, 0.0], [0.0, 0.6, 0.0], 150);
+        face([x, y, 0.0], [0.6, 0.0, 0.0], [0.0, 0.0, h], 200);
+        face([x, y, 0.0], [0.0, 0.6, 0.0], [0.0, 0.0, h], 200);
+    }
+    std::fs::create_dir_all(dir).unwrap();
+    let path = dir.join("room.ply");
+    ggs::io::write_cloud(&path, &pts, None).unwrap();
+    path
+}
+
+#[test]
+fn scene_crops_keep_the_band_and_the_same_bytes_on_any_thread_count() {
+    let input_dir = tmp("room-in");
+    let scene = ScanInput::new(room(&input_dir));
+    let cfg = |threads| GeneratorConfig {
+        seed: 5,
+        threads,
+        preset: Preset::Scene(Level::Hard),
+        crops: generator::crops::CropConfig {
+            share: 0.25,
+            count: 16,
+        },
+        voxel: 0.1,
+        ..GeneratorConfig::default()
+    };
+    let (a, b) = (tmp("room-a"), tmp("room-b"));
+    let gen = |dir: &Path, threads| {
+        generator::output::prepare_out(dir, false).unwrap();
+        generator::generate(
+            std::slice::from_ref(&scene),
+            &cfg(threads),
+            dir,
+            |_, _, _| {},
+        )
+        .unwrap()
+    };
+    let g = gen(&a, 1);
+    gen(&b, 2);
+    assert!(g.pairs.len() >= 3, "{} pairs", g.pairs.len());
+    assert_eq!(tree(&a), tree(&b), "1 and 2 threads wrote different files");
+    // Every pair in the 3DLoMatch-like band, its overlap the share of view i's points that
+    // view j holds, and its target view i moved by T.
+    let views = generator::scan_views(&scene, &cfg(1)).unwrap();
+    for p in &g.pairs {
+        assert!((10.0..30.0).contains(&p.overlap), "{}", p.overlap);
+        let slot = |id| views.view_ids.iter().position(|&v| v == id).unwrap();
+        let (vi, vj) = (
+            &views.visible[slot(p.view_i)],
+            &views.visible[slot(p.view_j)],
+        );
+        let common = vi.iter().filter(|i| vj.binary_search(i).is_ok()).count();
+        assert_eq!(p.overlap, common as f64 / vi.len() as f64 * 100.0);
+        let target =
+            ggs::io::read_exact_points(&a.join("pairs").join(format!("{}.ply", p.name)), None)
+                .unwrap()
+                .points;
+        let first = p.transform.apply(&views.points[vi[0] as usize]);
+        assert!((0..3).all(|k| (target[0][k] - first[k]).abs() < 1e-9));
+    }
+    for d in [a, b, input_dir] {
+        std::fs::remove_dir_all(d).unwrap();
+    }
+}

@@ -25,7 +25,8 @@ pub struct PartialArgs {
     /// Overwrite files in a non-empty output folder.
     #[arg(long)]
     pub force: bool,
-    /// Ground-truth preset: fpv1, fpv1-code, fp-{r,t,o}-{e,m,h}.
+    /// Ground-truth preset: fpv1, fpv1-code, fp-{r,t,o}-{e,m,h}, or scene-{e,m,h} (views
+    /// cropped from a scene: a room, a LiDAR scan; overlap as fp-o-{e,m,h}).
     #[arg(long, default_value = "fpv1")]
     pub preset: String,
     /// Random seed: the same seed gives the same benchmark, byte for byte.
@@ -59,9 +60,15 @@ pub struct PartialArgs {
     /// Up axis (x, y or z): cameras at or below the floor are dropped.
     #[arg(long, default_value = "y")]
     pub up: String,
-    /// Keep the first K above-floor cameras (0: all). The published FPv1 used 12.
+    /// Keep the first K above-floor cameras (0: all). The published FPv1 used 12. A scene
+    /// preset draws K crops.
     #[arg(long, value_name = "K", default_value_t = 12)]
     pub views: usize,
+    /// Scene presets: crop radius as this share of the scene's extent, the diagonal of the
+    /// box holding the middle 96 % of its coordinates on each axis (a list's radius= gives
+    /// one scene its own radius instead).
+    #[arg(long, value_name = "SHARE", default_value_t = 0.4)]
+    pub crop: f64,
     /// Camera positions (x y z per line, floor frame) instead of the icosphere.
     #[arg(long, value_name = "FILE")]
     pub cameras: Option<PathBuf>,
@@ -107,6 +114,7 @@ fn config(args: &PartialArgs) -> Result<GeneratorConfig> {
         centre: &args.centre,
         up: &args.up,
         views: args.views,
+        crop: args.crop,
         cameras: args.cameras.as_deref(),
         min_overlap: args.min_overlap,
         max_overlap: args.max_overlap,

@@ -1,6 +1,7 @@
 //! The generator's settings as a front end receives them (names and plain numbers), checked
 //! once here for every front end and turned into a [`GeneratorConfig`].
 
+use super::crops::CropConfig;
 use super::presets::{OverlapBand, Preset, PRESET_NAMES};
 use super::viewpoints::{Centre, ViewConfig};
 use super::{parse_cameras, GeneratorConfig, SampleSize};
@@ -10,7 +11,7 @@ use std::path::Path;
 /// The settings of `ggs partial`, unchecked.
 #[derive(Debug, Clone)]
 pub struct GeneratorOptions<'a> {
-    /// Ground-truth preset: fpv1, fpv1-code, fp-{r,t,o}-{e,m,h}.
+    /// Ground-truth preset: fpv1, fpv1-code, fp-{r,t,o}-{e,m,h}, scene-{e,m,h}.
     pub preset: &'a str,
     pub seed: u64,
     /// Points sampled on each mesh (default 100 000), unless `spacing` is given.
@@ -27,8 +28,11 @@ pub struct GeneratorOptions<'a> {
     pub centre: &'a str,
     /// `x`, `y` or `z`.
     pub up: &'a str,
-    /// Keep the first K above-floor cameras (0: all).
+    /// Keep the first K above-floor cameras (0: all); a scene preset draws K crops (K ≥ 2).
     pub views: usize,
+    /// Scene presets: crop radius as a share of the scene's extent
+    /// (`crops::robust_diagonal`), in (0, 1].
+    pub crop: f64,
     /// A file of camera positions (x y z per line) instead of the icosphere.
     pub cameras: Option<&'a Path>,
     /// Overlap band overrides, percent, within [0, 100]; the preset's band fills the other.
@@ -79,6 +83,7 @@ impl GeneratorOptions<'_> {
             sample,
             mesh_vertices: self.vertices,
             flip_factor: positive("flip factor", self.flip_factor)?,
+            crops: self.crop_config(preset)?,
             voxel: positive("voxel", self.voxel)?,
             threads: self.threads,
         })
@@ -104,6 +109,32 @@ impl GeneratorOptions<'_> {
             ));
         }
         Ok(Some(b))
+    }
+
+    /// How a scene preset crops: `views` crops of radius `crop ×` the scene's extent.
+    fn crop_config(&self, preset: Preset) -> Result<CropConfig> {
+        if !(self.crop.is_finite() && self.crop > 0.0 && self.crop <= 1.0) {
+            return Err(GgsError::param(
+                "crop",
+                format!(
+                    "must lie in (0, 1] (a share of the scene's extent), got {}",
+                    self.crop
+                ),
+            ));
+        }
+        if preset.is_scene() && self.views < 2 {
+            return Err(GgsError::param(
+                "views",
+                format!(
+                    "a scene preset draws this many crops, at least 2 (got {})",
+                    self.views
+                ),
+            ));
+        }
+        Ok(CropConfig {
+            share: self.crop,
+            count: self.views,
+        })
     }
 
     /// Where the cameras are: the icosphere's settings or the file's positions.
@@ -167,6 +198,7 @@ mod tests {
             centre: "centroid",
             up: "y",
             views: 12,
+            crop: 0.4,
             cameras: None,
             min_overlap: None,
             max_overlap: None,
@@ -190,7 +222,22 @@ mod tests {
 
     #[test]
     fn each_bad_setting_is_named() {
-        let cases: [(GeneratorOptions, &str); 8] = [
+        let cases: [(GeneratorOptions, &str); 10] = [
+            (
+                GeneratorOptions {
+                    crop: 1.5,
+                    ..options()
+                },
+                "crop: must lie in (0, 1]",
+            ),
+            (
+                GeneratorOptions {
+                    preset: "scene-h",
+                    views: 1,
+                    ..options()
+                },
+                "views: a scene preset draws this many crops",
+            ),
             (
                 GeneratorOptions {
                     preset: "fp-z-e",

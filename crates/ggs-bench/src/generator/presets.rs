@@ -8,6 +8,10 @@
 //! | `fp-r-e` / `-m` / `-h` | E: [−15, 15]; M: ±[15, 45]; H: x, z ±[45, 180], y ±[45, 90] | E | E |
 //! | `fp-t-e` / `-m` / `-h` | E | norm E [0, 1] m, M [1, 5] m, H [5, 10] m, random direction | E |
 //! | `fp-o-e` / `-m` / `-h` | E | E | E [60, 100], M [30, 60), H [10, 30) |
+//! | `scene-e` / `-m` / `-h` | as `fpv1` | as `fpv1` | E [60, 100], M [30, 60), H [10, 30) |
+//!
+//! The scene presets cut their views as crops of a scene ([`super::crops`]), the others by
+//! hidden point removal from cameras around a scan.
 //!
 //! Euler 'xyz' is the extrinsic convention of SciPy (lower case): rotate about x by α, then
 //! about the fixed y by β, then about the fixed z by γ, so `R = R_z(γ)·R_y(β)·R_x(α)`.
@@ -38,6 +42,8 @@ pub enum Preset {
     Fpv1,
     Fpv1Code,
     Fp(Varies, Level),
+    /// Crops of a scene (a room, a LiDAR scan) at an overlap level, each pair turned as `fpv1`.
+    Scene(Level),
 }
 
 /// Every preset name, in a stable order.
@@ -53,6 +59,9 @@ pub const PRESET_NAMES: &[&str] = &[
     "fp-o-e",
     "fp-o-m",
     "fp-o-h",
+    "scene-e",
+    "scene-m",
+    "scene-h",
 ];
 
 /// A range of overlap percentages; the upper end is included only at 100.
@@ -79,6 +88,9 @@ impl Preset {
         match name.to_ascii_lowercase().as_str() {
             "fpv1" => Some(Preset::Fpv1),
             "fpv1-code" => Some(Preset::Fpv1Code),
+            other if other.starts_with("scene-") => {
+                Some(Preset::Scene(level(other.strip_prefix("scene-")?)?))
+            }
             other => {
                 let rest = other.strip_prefix("fp-")?;
                 let (v, l) = rest.split_once('-')?;
@@ -94,6 +106,11 @@ impl Preset {
     }
 
     pub fn name(&self) -> String {
+        let level = |l: &Level| match l {
+            Level::Easy => 'e',
+            Level::Medium => 'm',
+            Level::Hard => 'h',
+        };
         match self {
             Preset::Fpv1 => "fpv1".into(),
             Preset::Fpv1Code => "fpv1-code".into(),
@@ -104,19 +121,21 @@ impl Preset {
                     Varies::Translation => 't',
                     Varies::Overlap => 'o',
                 },
-                match l {
-                    Level::Easy => 'e',
-                    Level::Medium => 'm',
-                    Level::Hard => 'h',
-                }
+                level(l)
             ),
+            Preset::Scene(l) => format!("scene-{}", level(l)),
         }
+    }
+
+    /// True for the presets whose views are crops of a scene.
+    pub fn is_scene(&self) -> bool {
+        matches!(self, Preset::Scene(_))
     }
 
     /// The overlap band of the preset.
     pub fn overlap(&self) -> OverlapBand {
         let level = match self {
-            Preset::Fp(Varies::Overlap, l) => *l,
+            Preset::Fp(Varies::Overlap, l) | Preset::Scene(l) => *l,
             _ => Level::Easy,
         };
         match level {
@@ -139,7 +158,7 @@ impl Preset {
     pub fn draw(&self, rng: &mut Rng) -> ([f64; 3], [f64; 3]) {
         let box_translation = |rng: &mut Rng| [0; 3].map(|_: i32| rng.range(-0.5, 0.5));
         match self {
-            Preset::Fpv1 => {
+            Preset::Fpv1 | Preset::Scene(_) => {
                 let a = [0; 3].map(|_: i32| rng.range(-180.0, 180.0));
                 (a, box_translation(rng))
             }
@@ -207,6 +226,9 @@ mod tests {
         assert!(Preset::from_name("fp-x-e").is_none());
         assert!(Preset::from_name("fp-r-x").is_none());
         assert!(Preset::from_name("fpv2").is_none());
+        assert!(Preset::from_name("scene-x").is_none());
+        assert!(Preset::from_name("scene-h").unwrap().is_scene());
+        assert!(!Preset::from_name("fp-o-h").unwrap().is_scene());
     }
 
     #[test]
@@ -266,6 +288,8 @@ mod tests {
         let m = Preset::Fp(Varies::Overlap, Level::Medium).overlap();
         assert!(m.contains(30.0) && !m.contains(60.0));
         let h = Preset::Fp(Varies::Overlap, Level::Hard).overlap();
+        assert_eq!(Preset::Scene(Level::Hard).overlap(), h);
+        assert_eq!(Preset::Scene(Level::Medium).overlap(), m);
         assert!(h.contains(10.0) && !h.contains(30.0) && !h.contains(9.0));
         assert_eq!(Preset::Fp(Varies::Rotation, Level::Hard).overlap(), e);
     }
