@@ -43,7 +43,7 @@ pub mod verify;
 use crate::cloud::Cloud;
 use crate::coarse::{CpuBackend, PreparedSearch, Search, SearchConfig, SearchMode, SearchResult};
 use crate::error::Result;
-use crate::refine::{refine_prepared, PreparedPair, RefineConfig, RefineResult};
+use crate::refine::{refine_prepared, PreparedPair, QualityReport, RefineConfig, RefineResult};
 use crate::transform::{rotation_angle_deg, Rigid};
 pub use config::{
     FinalStage, Preset, RegistrationConfig, VoxelSize, AUTO_VOXEL_CELLS, AUTO_VOXEL_SPACINGS,
@@ -179,7 +179,10 @@ fn register_in_pool(
     let t_refine = Instant::now();
     let refined = refine_chosen(clouds, voxel, cfg, prepared_final, &start)?;
     let refine_ms = ms(t_refine);
-    let (confidence, ambiguous, warnings) = assess(&coarse, verification.as_ref(), cfg);
+    let (confidence, ambiguous, mut warnings) = assess(&coarse, verification.as_ref(), cfg);
+    if let Some(r) = &refined {
+        warnings.extend(refinement_warnings(&r.report));
+    }
     coarse.hypotheses.truncate(cfg.search.top_k.max(1));
     Ok(Registration {
         transform: refined.as_ref().map_or(start, |r| r.transform),
@@ -464,9 +467,68 @@ fn assess(
     (1.0 - ratio, ratio >= ambiguous_ratio, warnings)
 }
 
+/// What the final refinement says against its own pose: a degenerate information matrix
+/// (`λ_min / λ_max` below [`crate::refine::DEGENERATE_RATIO`]: the overlap leaves a motion
+/// free, and the pose may be off along it) and a refinement that stopped without converging.
+fn refinement_warnings(report: &QualityReport) -> Vec<String> {
+    let mut warnings = Vec::new();
+    if report.degenerate {
+        let [low, .., high] = report.information_eigenvalues;
+        warnings.push(format!(
+            "weakly constrained: the overlap barely pins the pose in one direction (information eigenvalues λ_min / λ_max = {:.1e}, below {:.0e}); the result may be off along it (a plane sliding, a turn about a symmetry axis)",
+            low / high,
+            crate::refine::DEGENERATE_RATIO
+        ));
+    }
+    if !report.converged {
+        warnings.push(format!(
+            "not converged: the final refinement stopped after {} iterations ({}); the result may be off",
+            report.iterations, report.stop_reason
+        ));
+    }
+    warnings
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn quality(eigenvalues: [f64; 6], converged: bool) -> QualityReport {
+        QualityReport {
+            fitness_source: 0.5,
+            fitness_target: 0.5,
+            inlier_rmse: 0.01,
+            inliers: 1000,
+            correspondence_distance: 0.05,
+            iterations: if converged { 4 } else { 100 },
+            converged,
+            stop_reason: if converged {
+                "small update"
+            } else {
+                "max iterations"
+            }
+            .into(),
+            information_eigenvalues: eigenvalues,
+            degenerate: eigenvalues[0] < crate::refine::DEGENERATE_RATIO * eigenvalues[5],
+        }
+    }
+
+    #[test]
+    fn a_degenerate_or_unconverged_refinement_warns() {
+        let well = [0.01, 0.02, 0.03, 0.04, 0.05, 0.06];
+        assert!(refinement_warnings(&quality(well, true)).is_empty());
+        let sliding = [1e-6, 0.02, 0.03, 0.04, 0.05, 0.06];
+        let w = refinement_warnings(&quality(sliding, true));
+        assert_eq!(w.len(), 1);
+        assert!(
+            w[0].starts_with("weakly constrained:") && w[0].contains("1.7e-5"),
+            "{w:?}"
+        );
+        let w = refinement_warnings(&quality(well, false));
+        assert_eq!(w.len(), 1);
+        assert!(w[0].contains("100 iterations (max iterations)"), "{w:?}");
+        assert_eq!(refinement_warnings(&quality(sliding, false)).len(), 2);
+    }
 
     /// A square `side` × `side` sampled on an `n` × `n` grid (spacing `side / (n − 1)`).
     fn square(n: usize, side: f64) -> Cloud {

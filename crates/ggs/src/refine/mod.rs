@@ -200,6 +200,10 @@ impl Default for RefineConfig {
     }
 }
 
+/// `degenerate` is set when `λ_min / λ_max` of the information matrix lies below this: a
+/// motion the data barely constrains (a plane sliding, a corridor, a sphere turning).
+pub const DEGENERATE_RATIO: f64 = 1e-3;
+
 /// What the refinement achieved (see the module documentation for exact definitions).
 #[derive(Debug, Clone, serde::Serialize)]
 pub struct QualityReport {
@@ -808,7 +812,8 @@ fn quality(
         v.sort_by(f64::total_cmp);
         eig.copy_from_slice(&v);
         // NaN eigenvalues count as degenerate.
-        degenerate = eig[0].partial_cmp(&(1e-3 * eig[5])) != Some(std::cmp::Ordering::Greater);
+        degenerate =
+            eig[0].partial_cmp(&(DEGENERATE_RATIO * eig[5])) != Some(std::cmp::Ordering::Greater);
     }
     QualityReport {
         fitness_source: inliers as f64 / src.len() as f64,
