@@ -21,9 +21,27 @@ fn face(rng: &mut common::Lcg, o: [f64; 3], u: [f64; 3], v: [f64; 3], n: usize) 
 /// end), sampled anew from `seed`.
 fn corridor(x0: f64, seed: u64) -> Cloud {
     let mut rng = common::Lcg(seed);
-    let mut p = face(&mut rng, [x0, 0.0, 0.0], [12.0, 0.0, 0.0], [0.0, 2.0, 0.0], 6000);
-    p.extend(face(&mut rng, [x0, 0.0, 0.0], [12.0, 0.0, 0.0], [0.0, 0.0, 2.5], 6000));
-    p.extend(face(&mut rng, [x0, 2.0, 0.0], [12.0, 0.0, 0.0], [0.0, 0.0, 2.5], 6000));
+    let mut p = face(
+        &mut rng,
+        [x0, 0.0, 0.0],
+        [12.0, 0.0, 0.0],
+        [0.0, 2.0, 0.0],
+        6000,
+    );
+    p.extend(face(
+        &mut rng,
+        [x0, 0.0, 0.0],
+        [12.0, 0.0, 0.0],
+        [0.0, 0.0, 2.5],
+        6000,
+    ));
+    p.extend(face(
+        &mut rng,
+        [x0, 2.0, 0.0],
+        [12.0, 0.0, 0.0],
+        [0.0, 0.0, 2.5],
+        6000,
+    ));
     Cloud::new(p)
 }
 
