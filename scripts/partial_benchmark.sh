@@ -17,12 +17,7 @@ min_recall=${3:-0}
 shift $(( $# < 3 ? $# : 3 ))
 threads=${GGS_THREADS:-2}
 points=${GGS_POINTS:-100000}  # points sampled per mesh
-if [ -n "${GGS_BIN:-}" ]; then
-    ggs=$GGS_BIN  # a prebuilt binary
-else
-    cargo build --release -q -p ggs-cli
-    ggs=target/release/ggs
-fi
+ggs=$(scripts/ggs_bin.sh)  # $GGS_BIN, or target/release/ggs built first
 rm -rf "$out/data" "$out/run"
 "$ggs" partial --inputs-list benchmarks/human_meshes.txt --preset "$preset" --seed 2022 \
     --points "$points" --threads "$threads" --out "$out/data" --quiet | grep -v '^$' | head -9

@@ -24,12 +24,7 @@ case "$kind" in
     *) echo "KIND must be indoor or lidar, not '$kind'" >&2; exit 2 ;;
 esac
 threads=${GGS_THREADS:-2}
-if [ -n "${GGS_BIN:-}" ]; then
-    ggs=$GGS_BIN  # a prebuilt binary
-else
-    cargo build --release -q -p ggs-cli
-    ggs=target/release/ggs
-fi
+ggs=$(scripts/ggs_bin.sh)  # $GGS_BIN, or target/release/ggs built first
 rm -rf "$out/data" "$out/run"
 "$ggs" partial --inputs-list "benchmarks/scenes_$kind.txt" --preset "$preset" --seed 2026 \
     --views 16 --threads "$threads" --out "$out/data" --quiet | grep -v '^$' | head -9

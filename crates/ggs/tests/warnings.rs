@@ -21,27 +21,15 @@ fn face(rng: &mut common::Lcg, o: [f64; 3], u: [f64; 3], v: [f64; 3], n: usize) 
 /// end), sampled anew from `seed`.
 fn corridor(x0: f64, seed: u64) -> Cloud {
     let mut rng = common::Lcg(seed);
-    let mut p = face(
-        &mut rng,
-        [x0, 0.0, 0.0],
-        [12.0, 0.0, 0.0],
-        [0.0, 2.0, 0.0],
-        6000,
-    );
-    p.extend(face(
-        &mut rng,
-        [x0, 0.0, 0.0],
-        [12.0, 0.0, 0.0],
-        [0.0, 0.0, 2.5],
-        6000,
-    ));
-    p.extend(face(
-        &mut rng,
-        [x0, 2.0, 0.0],
-        [12.0, 0.0, 0.0],
-        [0.0, 0.0, 2.5],
-        6000,
-    ));
+    let along = [12.0, 0.0, 0.0];
+    let mut p = Vec::new();
+    for (o, v) in [
+        ([x0, 0.0, 0.0], [0.0, 2.0, 0.0]),
+        ([x0, 0.0, 0.0], [0.0, 0.0, 2.5]),
+        ([x0, 2.0, 0.0], [0.0, 0.0, 2.5]),
+    ] {
+        p.extend(face(&mut rng, o, along, v, 6000));
+    }
     Cloud::new(p)
 }
 
