@@ -487,7 +487,7 @@ fn print_timings(reg: &Registration, read_ms: f64, total_ms: f64) -> Result<()> 
     outln!();
     outln!("stage                              wall ms     CPU ms  share of scoring CPU");
     outln!("read both clouds                {read_ms:>10.1}");
-    outln!("target kernel + spectra         {:>10.1}", t.target_ms);
+    outln!("target kernel and plans         {:>10.1}", t.target_ms);
     outln!("rotated extents                 {:>10.1}", t.extents_ms);
     if r.stats.coarse_level.is_some() {
         outln!(

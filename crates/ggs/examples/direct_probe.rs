@@ -36,7 +36,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let min = target.aabb().ok_or("empty target")?.min;
     let kernel = target_kernel(&target, min, s0)?;
     let geo = geometry_for(kernel.dims, &boxes);
-    let sized = SizedPlans::new(CpuCorrelator::new(geo, &kernel), kernel.clone());
+    let sized = SizedPlans::new(CpuCorrelator::new(geo, &kernel), kernel.clone().into());
     let assigned = sized.assign(&pool, &boxes, &all);
     let plans = assigned.plans(&sized);
     let direct = DirectKernel::new(&geo, &kernel).ok_or("kernel too long for direct")?;

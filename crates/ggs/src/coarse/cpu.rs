@@ -44,7 +44,7 @@ use super::zaxis::ZAxis;
 use rustfft::num_complex::Complex;
 
 use rustfft::{Fft, FftPlanner};
-use std::sync::Arc;
+use std::sync::{Arc, OnceLock};
 use std::time::{Duration, Instant};
 
 type C64 = Complex<f64>;
@@ -80,13 +80,10 @@ pub struct CpuCorrelator<T: Real = f64> {
     ifft_y: Arc<dyn Fft<T>>,
     fft_x: Arc<dyn Fft<T>>,
     ifft_x: Arc<dyn Fft<T>>,
-    /// conj(FFT(6·O_k − 1)) / (Lx·Ly·Lz), or of `6·O_k` when the window is counted,
-    /// layout [y][kz][x] (computed in f64).
-    kernel: Vec<Complex<T>>,
+    /// The kernel spectrum, computed when a rotation first needs the transforms.
+    spectrum: Arc<KernelSpectrum<T>>,
     /// How the window's −1 enters the outputs ([`KernelWindow`]).
     window: KernelWindow,
-    /// `max_j |K_j|` of that spectrum, unnormalized (for the error bound).
-    kernel_peak: f64,
     scratch_len: usize,
     /// Cells of the kernel grid, |K|.
     pub kernel_cells: i64,
@@ -333,11 +330,75 @@ fn fft_error(l: usize, u: f64) -> f64 {
     16.0 * u * (usize::BITS - (l.max(2) - 1).leading_zeros()) as f64
 }
 
+/// A correlator's conjugate kernel spectrum and its peak, computed on first use, so that a
+/// plan whose rotations are all scored by direct or sparse correlation never transforms its
+/// kernel or holds its spectrum (a sparse LiDAR target in a large box: hundreds of MB). The
+/// values do not depend on when they are computed.
+pub(crate) struct KernelSpectrum<T: Real> {
+    geo: Geometry,
+    window: KernelWindow,
+    source: SpectrumSource,
+    cell: OnceLock<(Vec<Complex<T>>, f64)>,
+}
+
+/// Where a [`KernelSpectrum`] comes from.
+enum SpectrumSource {
+    /// The transform of this occupancy, in f64, stored as `T`.
+    Kernel(Arc<Occupancy>),
+    /// Another correlator's f64 spectrum, rounded to `T`.
+    Rounded(Arc<KernelSpectrum<f64>>),
+    /// None: a correlator that only transforms (the kernel's own planner).
+    None,
+}
+
+impl<T: Real> KernelSpectrum<T> {
+    /// A spectrum a correlator never reads (see [`SpectrumSource::None`]).
+    fn none(geo: Geometry) -> Self {
+        KernelSpectrum {
+            geo,
+            window: KernelWindow::InSpectrum,
+            source: SpectrumSource::None,
+            cell: OnceLock::new(),
+        }
+    }
+
+    /// The spectrum, layout [y][kz][x], and `max_j |K_j|` unnormalized (for the error bound).
+    fn get(&self) -> (&[Complex<T>], f64) {
+        let (spectrum, peak) = self.cell.get_or_init(|| match &self.source {
+            SpectrumSource::Kernel(kernel) => {
+                let (spectrum, peak) = kernel_spectrum(self.geo, kernel, self.window);
+                (round_spectrum(spectrum), peak)
+            }
+            SpectrumSource::Rounded(exact) => {
+                let (spectrum, peak) = exact.get();
+                (spectrum.iter().map(|&c| round_complex(c)).collect(), peak)
+            }
+            SpectrumSource::None => unreachable!("a kernel's planner reads no spectrum"),
+        });
+        (spectrum, *peak)
+    }
+}
+
+/// `c` rounded to `T` (a spectrum is finite).
+fn round_complex<T: Real>(c: C64) -> Complex<T> {
+    Complex::new(cast_finite::<T>(c.re), cast_finite::<T>(c.im))
+}
+
+/// An f64 spectrum as `T`: mapped in place when `T` is f64 (no second spectrum at the peak),
+/// else into a buffer of its own size (an in-place collect would keep the f64 one).
+fn round_spectrum<T: Real>(spectrum: Vec<C64>) -> Vec<Complex<T>> {
+    if std::mem::size_of::<T>() == std::mem::size_of::<f64>() {
+        spectrum.into_iter().map(round_complex).collect()
+    } else {
+        spectrum.iter().map(|&c| round_complex(c)).collect()
+    }
+}
+
 /// Conjugate kernel spectrum for `geo` computed in f64 (layout [y][kz][x], scaled by
 /// 1/(Lx·Ly·Lz)) and its unnormalized peak magnitude: of `6·O_k − 1` over the window, or of
 /// `6·O_k` when `window` is counted.
 fn kernel_spectrum(geo: Geometry, kernel: &Occupancy, window: KernelWindow) -> (Vec<C64>, f64) {
-    let mut me = CpuCorrelator::<f64>::plan(geo);
+    let me = CpuCorrelator::<f64>::plan(geo, Arc::new(KernelSpectrum::none(geo)));
     let [lx, ly, lz] = geo.fft_len;
     let mut ws = me.workspace();
     ws.begin(geo.kernel_dims);
@@ -367,7 +428,6 @@ fn kernel_spectrum(geo: Geometry, kernel: &Occupancy, window: KernelWindow) -> (
     let peak_sq = ws.grid.iter().map(|c| c.norm_sqr()).fold(0.0, f64::max);
     let peak = peak_sq.sqrt() * (1.0 + 4.0 * f64::EPSILON);
     let scale = 1.0 / (lx * ly * lz) as f64;
-    me.kernel = Vec::new();
     // In place: the grid becomes the spectrum (no second grid-sized buffer at the peak).
     for c in ws.grid.iter_mut() {
         *c = c.conj() * scale;
@@ -381,52 +441,65 @@ fn cast_finite<T: Real>(v: f64) -> T {
 }
 
 impl<T: Real> CpuCorrelator<T> {
-    /// Plan the transforms for `geo` and compute the kernel spectrum of `kernel`
-    /// (whose dims must equal `geo.kernel_dims`) in f64, stored as `T`, with the window
-    /// inside it.
+    /// Plan the transforms for `geo` with the kernel spectrum of `kernel` (whose dims must
+    /// equal `geo.kernel_dims`), computed in f64 and stored as `T`, with the window inside
+    /// it, when a rotation first needs it.
     pub fn new(geo: Geometry, kernel: &Occupancy) -> Self {
         Self::with_window(geo, kernel, KernelWindow::InSpectrum)
     }
 
     /// [`Self::new`] with the window entering as `window` says.
     pub fn with_window(geo: Geometry, kernel: &Occupancy, window: KernelWindow) -> Self {
+        Self::with_shared_kernel(geo, Arc::new(kernel.clone()), window)
+    }
+
+    /// [`Self::with_window`] with a kernel shared with other plans.
+    pub fn with_shared_kernel(geo: Geometry, kernel: Arc<Occupancy>, window: KernelWindow) -> Self {
         assert_eq!(kernel.dims, geo.kernel_dims);
-        let mut me = Self::plan(geo);
-        let (spectrum, peak) = kernel_spectrum(geo, kernel, window);
-        me.window = window;
-        let cast = |c: C64| Complex::new(cast_finite::<T>(c.re), cast_finite::<T>(c.im));
-        me.kernel = if std::mem::size_of::<T>() == std::mem::size_of::<f64>() {
-            // The same size (f64): mapped in place, no second spectrum at the peak.
-            spectrum.into_iter().map(cast).collect()
-        } else {
-            // Smaller: a buffer of its own size (an in-place collect would keep the f64 one).
-            spectrum.iter().map(|&c| cast(c)).collect()
+        let (cells, occupied) = (kernel.cells.len() as i64, kernel.occupied() as i64);
+        let spectrum = KernelSpectrum {
+            geo,
+            window,
+            source: SpectrumSource::Kernel(kernel),
+            cell: OnceLock::new(),
         };
-        me.kernel_peak = peak;
-        me.kernel_occupied = kernel.occupied() as i64;
-        me.kernel_cells = kernel.cells.len() as i64;
+        let mut me = Self::plan(geo, Arc::new(spectrum));
+        me.window = window;
+        me.kernel_occupied = occupied;
+        me.kernel_cells = cells;
         me
     }
 
     /// The same correlator in another sample type: new plans, the f64 kernel spectrum of
-    /// `exact` rounded to `T` (no second kernel transform).
+    /// `exact` rounded to `T` when first needed (no second kernel transform).
     pub fn from_f64(exact: &CpuCorrelator<f64>) -> Self {
-        let mut me = Self::plan(exact.geo);
-        let cast = |v: f64| T::from_f64(v).expect("finite spectrum");
-        me.kernel = exact
-            .kernel
-            .iter()
-            .map(|c| Complex::new(cast(c.re), cast(c.im)))
-            .collect();
-        me.kernel_peak = exact.kernel_peak;
+        let spectrum = KernelSpectrum {
+            geo: exact.geo,
+            window: exact.window,
+            source: SpectrumSource::Rounded(exact.spectrum.clone()),
+            cell: OnceLock::new(),
+        };
+        let mut me = Self::plan(exact.geo, Arc::new(spectrum));
         me.window = exact.window;
         me.kernel_occupied = exact.kernel_occupied;
         me.kernel_cells = exact.kernel_cells;
         me
     }
 
-    /// FFT plans for `geo`, without a kernel.
-    fn plan(geo: Geometry) -> Self {
+    /// The kernel spectrum and its peak, computed on the first call.
+    fn spectrum(&self) -> (&[Complex<T>], f64) {
+        self.spectrum.get()
+    }
+
+    /// Compute the kernel spectrum now, if it is not yet (before the workers of a pass that
+    /// will correlate by the transforms allocate their buffers: the peak memory of a search
+    /// stays that of the spectra, then the workspaces).
+    pub fn compute_spectrum(&self) {
+        self.spectrum.get();
+    }
+
+    /// FFT plans for `geo` with the kernel spectrum `spectrum`.
+    fn plan(geo: Geometry, spectrum: Arc<KernelSpectrum<T>>) -> Self {
         let [lx, ly, lz] = geo.fft_len;
         let z = ZAxis::plan(lz);
         let mut cp = FftPlanner::<T>::new();
@@ -451,9 +524,8 @@ impl<T: Real> CpuCorrelator<T> {
             ifft_y,
             fft_x,
             ifft_x,
-            kernel: Vec::new(),
+            spectrum,
             window: KernelWindow::InSpectrum,
-            kernel_peak: 0.0,
             scratch_len,
             kernel_cells: 0,
             kernel_occupied: 0,
@@ -482,9 +554,17 @@ impl<T: Real> CpuCorrelator<T> {
     /// ([`Workspace::begin`] clears the source rows a grid occupies), so nothing stale is
     /// read.
     pub fn fit(&self, ws: &mut Workspace<T>) {
+        self.fit_grid(ws);
+        self.fit_transforms(ws);
+    }
+
+    /// Size the transforms' buffers of a worker whose source grid [`Self::fit_grid`] sized
+    /// (the grid is kept): done by the first transform of a rotation, so a worker whose
+    /// rotations are all scored by direct or sparse correlation never allocates them.
+    fn fit_transforms(&self, ws: &mut Workspace<T>) {
         let [lx, ly, lz] = self.geo.fft_len;
         let kz = self.geo.kz();
-        let ay = self.fit_grid(ws);
+        let ay = ws.ay;
         let ax = self.geo.source_max[0].max(self.geo.kernel_dims[0]);
         let zero = Complex::<T>::default();
         ws.zspec.resize(ax * ay * kz, zero);
@@ -572,7 +652,7 @@ impl<T: Real> CpuCorrelator<T> {
         let u = T::UNIT_ROUNDOFF;
         let eps: f64 = self.geo.fft_len.iter().map(|&l| fft_error(l, u)).sum();
         let occupied = occupied.max(0.0);
-        let bound = 2.0 * (2.0 * eps + 4.0 * u) * occupied.sqrt() * self.kernel_peak;
+        let bound = 2.0 * (2.0 * eps + 4.0 * u) * occupied.sqrt() * self.spectrum().1;
         match self.window {
             KernelWindow::InSpectrum => bound,
             KernelWindow::Counted => bound + 2.0 * u * (7.0 * occupied + bound),
@@ -719,6 +799,11 @@ impl<T: Real> CpuCorrelator<T> {
     /// Stage 1: r2c along z and FFT along y of the source grid (pruned to the occupied
     /// rows and planes). Destroys the source grid (realfft uses it as scratch).
     pub fn stage_forward(&self, ws: &mut Workspace<T>) {
+        // The spectrum before the buffers: the first transform of a pass computes it while no
+        // worker holds transform buffers yet (the others wait for it), so the peak is that of
+        // computing it up front.
+        self.spectrum();
+        self.fit_transforms(ws);
         let t0 = Instant::now();
         let nsx = ws.ns[0];
         if self.window == KernelWindow::Counted {
@@ -742,11 +827,12 @@ impl<T: Real> CpuCorrelator<T> {
         let t1 = Instant::now();
         let [lx, ly, _] = self.geo.fft_len;
         let kz = self.geo.kz();
+        let kernel = self.spectrum().0;
         for y in 0..ly {
             let range = y * kz * lx..(y + 1) * kz * lx;
             let block = &mut ws.grid[range.clone()];
             self.fft_x.process_with_scratch(block, &mut ws.scratch);
-            multiply_spectra(block, &self.kernel[range]);
+            multiply_spectra(block, &kernel[range]);
             self.ifft_x.process_with_scratch(block, &mut ws.scratch);
         }
         ws.t_product += t1.elapsed();
@@ -1225,18 +1311,44 @@ mod tests {
                 CpuCorrelator::<f32>::with_window(geo, &k, w),
                 CpuCorrelator::<f32>::from_f64(&exact),
             );
-            assert_eq!(a.kernel, b.kernel);
-            assert_eq!((a.kernel_peak, a.window), (b.kernel_peak, b.window));
+            assert_eq!(a.spectrum().0, b.spectrum().0);
+            assert_eq!((a.spectrum().1, a.window), (b.spectrum().1, b.window));
             assert_eq!(
                 (a.kernel_cells, a.kernel_occupied),
                 (b.kernel_cells, b.kernel_occupied)
             );
             // The f64 spectrum, mapped in place, is the f32 one before rounding.
-            let rounded: Vec<Complex<f32>> = (exact.kernel.iter())
+            let rounded: Vec<Complex<f32>> = (exact.spectrum().0.iter())
                 .map(|c| Complex::new(c.re as f32, c.im as f32))
                 .collect();
-            assert_eq!(rounded, a.kernel);
+            assert_eq!(rounded, a.spectrum().0);
         }
+    }
+
+    /// A plan computes its kernel spectrum, and a worker its transforms' buffers, only when a
+    /// rotation is first correlated by the transforms; the scores are those of a plan and a
+    /// workspace made whole up front.
+    #[test]
+    fn the_spectrum_and_the_transform_buffers_come_with_the_first_transform() {
+        let k = occupancy([5, 4, 6], &[true, false, false, true, false]);
+        let src = occupancy([7, 6, 5], &[false, true, true]);
+        let geo = Geometry::new(k.dims, src.dims);
+        let exact = CpuCorrelator::<f64>::with_window(geo, &k, KernelWindow::InSpectrum);
+        let approx = CpuCorrelator::<f32>::from_f64(&exact);
+        assert!(exact.spectrum.cell.get().is_none() && approx.spectrum.cell.get().is_none());
+        let mut ws = Workspace::default();
+        approx.fit_grid(&mut ws);
+        assert!(ws.grid.is_empty() && ws.zspec.is_empty() && ws.scratch.is_empty());
+        ws.load(&src);
+        let lazy = approx.approx_best(&mut ws, true);
+        assert!(!ws.grid.is_empty());
+        assert!(approx.spectrum.cell.get().is_some() && exact.spectrum.cell.get().is_some());
+        let eager = CpuCorrelator::<f32>::with_window(geo, &k, KernelWindow::InSpectrum);
+        let mut whole = eager.workspace();
+        whole.load(&src);
+        let want = eager.approx_best(&mut whole, true);
+        assert_eq!((lazy.value, lazy.offset), (want.value, want.offset));
+        assert_eq!(lazy.error_bound, want.error_bound);
     }
 
     #[test]

@@ -12,13 +12,14 @@ use super::correlator::{
     RotatedSources, Scores, StageTimes,
 };
 use super::cpu::{CpuCorrelator, ExactKernels, KernelWindow, Real, Workspace};
+use rayon::prelude::*;
 
 use super::geometry::Geometry;
 use super::sized::SizedPlans;
 use super::voxel::Occupancy;
 use crate::error::{GgsError, Result};
 use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
-use std::sync::Mutex;
+use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 /// The CPU backend: f64 FFT correlations (exact), f32 ones with a bound (approximate).
@@ -48,17 +49,26 @@ impl Backend for CpuBackend {
         scores: Scores,
     ) -> Result<Box<dyn Correlator>> {
         Ok(Box::new(match scores {
-            Scores::Approximate => CpuPlan::Approximate(
-                SizedPlans::new(CpuCorrelator::new(geo, kernel), kernel.clone()),
-                ExactKernels::new(&geo, kernel),
-            ),
+            Scores::Approximate => {
+                let shared = Arc::new(kernel.clone());
+                let full = CpuCorrelator::with_shared_kernel(
+                    geo,
+                    shared.clone(),
+                    KernelWindow::InSpectrum,
+                );
+                CpuPlan::Approximate(
+                    SizedPlans::new(full, shared),
+                    ExactKernels::new(&geo, kernel),
+                )
+            }
             Scores::Mixed => {
                 let window =
                     KernelWindow::for_kernel(kernel.cells.len() as i64, kernel.occupied() as i64);
-                let exact = CpuCorrelator::<f64>::with_window(geo, kernel, window);
+                let shared = Arc::new(kernel.clone());
+                let exact = CpuCorrelator::<f64>::with_shared_kernel(geo, shared.clone(), window);
                 let approx = CpuCorrelator::<f32>::from_f64(&exact);
                 let kernels = ExactKernels::sparse_only(&geo, kernel);
-                CpuPlan::Mixed(exact, SizedPlans::new(approx, kernel.clone()), kernels)
+                CpuPlan::Mixed(exact, SizedPlans::new(approx, shared), kernels)
             }
             Scores::Exact => CpuPlan::Exact(CpuCorrelator::new(geo, kernel)),
         }))
@@ -99,9 +109,7 @@ impl Correlator for CpuPlan {
     ) -> Result<(Vec<BestOffset>, StageTimes)> {
         match self {
             CpuPlan::Mixed(c, ..) | CpuPlan::Exact(c) => {
-                run_pass(ctl, src, c, indices, Buffers::Full, |c, ws, _| {
-                    c.best_offset(ws)
-                })
+                run_pass(ctl, src, c, indices, |c, ws, _| c.best_offset(ws))
             }
             CpuPlan::Approximate(..) => Err(GgsError::param(
                 "scores",
@@ -130,16 +138,14 @@ impl Correlator for CpuPlan {
         let (kept, again): (Vec<usize>, Vec<usize>) =
             (0..indices.len()).partition(|&i| candidates[i].offsets().is_some());
         let pick = |from: &[usize]| from.iter().map(|&i| indices[i]).collect::<Vec<_>>();
-        let grid = Buffers::GridOnly;
-        let (counted, mut times) =
-            run_pass(ctl, src, approx, &pick(&kept), grid, |c, ws, slot| {
-                let offsets = candidates[kept[slot]].offsets().expect("kept");
-                Rescored::Exact(c.exact_among(ws, kernel, offsets))
-            })?;
+        let (counted, mut times) = run_pass(ctl, src, approx, &pick(&kept), |c, ws, slot| {
+            let offsets = candidates[kept[slot]].offsets().expect("kept");
+            Rescored::Exact(c.exact_among(ws, kernel, offsets))
+        })?;
         // Counting at candidates does no transform.
         times.flops = 0.0;
         let n_again = again.len();
-        let (above, above_times) = run_pass(ctl, src, approx, &pick(&again), Buffers::Full, {
+        let (above, above_times) = run_pass(ctl, src, approx, &pick(&again), {
             |c, ws, _| c.exact_above(ws, kernel, at_least)
         })?;
         times.add(&above_times);
@@ -176,18 +182,49 @@ impl Correlator for CpuPlan {
     ) -> Result<(Vec<ApproxBest>, StageTimes)> {
         match self {
             CpuPlan::Approximate(sized, kernels) => {
-                sized_pass(ctl, src, sized, indices, |c, ws| {
+                sized_pass(ctl, src, (sized, kernels), indices, |c, ws| {
                     (ws.direct_best(kernels, c.geometry()))
                         .map_or_else(|| c.rounded_best(ws), ApproxBest::from)
                 })
             }
-            CpuPlan::Mixed(_, sized, kernels) => sized_pass(ctl, src, sized, indices, |c, ws| {
-                (ws.direct_best(kernels, c.geometry()))
-                    .map_or_else(|| c.approx_best(ws, true), ApproxBest::from)
-            }),
+            CpuPlan::Mixed(_, sized, kernels) => {
+                sized_pass(ctl, src, (sized, kernels), indices, |c, ws| {
+                    (ws.direct_best(kernels, c.geometry()))
+                        .map_or_else(|| c.approx_best(ws, true), ApproxBest::from)
+                })
+            }
             CpuPlan::Exact(_) => Ok(as_intervals(self.exact(ctl, src, indices)?)),
         }
     }
+}
+
+/// True when every rotation of `indices` is likely scored by direct or sparse correlation
+/// ([`Workspace::direct_best`]): its expected cost is below the transforms' at the rotation's
+/// plan with twice as many source runs as the unrotated source occupies cells (a run holds one
+/// or more occupied cells; a rotation rarely doubles their count), at most one per point. Only
+/// when the spectra are computed depends on it, never a score.
+fn likely_exact_paths(
+    kernels: &ExactKernels,
+    plans: &[&CpuCorrelator<f32>],
+    plan_of: &[usize],
+    src: &RotatedSources<'_>,
+    indices: &[usize],
+) -> bool {
+    let points = &src.cloud.points;
+    let cells: std::collections::HashSet<[i64; 3]> = points
+        .iter()
+        .map(|p| p.map(|c| (c / src.voxel).floor() as i64))
+        .collect();
+    let runs = (2 * cells.len()).min(points.len());
+    indices.iter().zip(plan_of).all(|(&k, &p)| {
+        let Some(b) = src.boxes[k] else {
+            return false;
+        };
+        let fft = plans[p].geometry().flops(b.dims);
+        let dense = (kernels.dense.as_ref()).map_or(f64::INFINITY, |d| d.cost(b.dims, runs));
+        let sparse = (kernels.sparse.as_ref()).map_or(f64::INFINITY, |s| s.cost(b.dims, runs));
+        dense.min(sparse) < fft
+    })
 }
 
 /// Score the rotations `indices` with `score` (one call per rotation, in a worker's
@@ -197,52 +234,35 @@ fn run_pass<T: Real, R: Send + Copy>(
     src: &RotatedSources<'_>,
     corr: &CpuCorrelator<T>,
     indices: &[usize],
-    buffers: Buffers,
     score: impl Fn(&CpuCorrelator<T>, &mut Workspace<T>, usize) -> R + Sync,
 ) -> Result<(Vec<R>, StageTimes)> {
     let plan_of = vec![0; indices.len()];
-    run_sized(ctl, src, &[corr], &plan_of, indices, buffers, score)
+    run_sized(ctl, src, &[corr], &plan_of, indices, score)
 }
 
-/// What a pass's workers allocate: every buffer of a correlation, or only the source grid
-/// (scoring at a few candidate offsets straight from the grid needs no transform; a
-/// re-scoring round of a handful of rotations then allocates kilobytes, not megabytes).
-#[derive(Clone, Copy, PartialEq, Eq)]
-enum Buffers {
-    Full,
-    GridOnly,
-}
-
-impl Buffers {
-    /// Size `ws` for correlator `c`.
-    fn fit<T: Real>(self, c: &CpuCorrelator<T>, ws: &mut Workspace<T>) {
-        match self {
-            Buffers::Full => c.fit(ws),
-            Buffers::GridOnly => {
-                c.fit_grid(ws);
-            }
-        }
-    }
-}
-
-/// [`run_pass`] with each rotation at the smallest plan of `sized` that holds it.
+/// [`run_pass`] with each rotation at the smallest plan of `sized` that holds it. The plans'
+/// kernel spectra are computed up front, in parallel, unless every rotation is likely scored
+/// by `kernels` ([`likely_exact_paths`]): then they are computed only if a rotation still
+/// needs the transforms.
 fn sized_pass(
     ctl: &PassControl<'_>,
     src: &RotatedSources<'_>,
-    sized: &SizedPlans,
+    (sized, kernels): (&SizedPlans, &ExactKernels),
     indices: &[usize],
     score: impl Fn(&CpuCorrelator<f32>, &mut Workspace<f32>) -> ApproxBest + Sync,
 ) -> Result<(Vec<ApproxBest>, StageTimes)> {
     let a = sized.assign(ctl.pool, src.boxes, indices);
-    run_sized(
-        ctl,
-        src,
-        &a.plans(sized),
-        &a.plan_of,
-        indices,
-        Buffers::Full,
-        |c, ws, _| score(c, ws),
-    )
+    let plans = a.plans(sized);
+    if !likely_exact_paths(kernels, &plans, &a.plan_of, src, indices) {
+        let used: std::collections::BTreeSet<usize> = a.plan_of.iter().copied().collect();
+        ctl.pool.install(|| {
+            used.into_par_iter()
+                .for_each(|p| plans[p].compute_spectrum())
+        });
+    }
+    run_sized(ctl, src, &plans, &a.plan_of, indices, |c, ws, _| {
+        score(c, ws)
+    })
 }
 
 /// [`run_pass`] with rotation `indices[i]` correlated by `plans[plan_of[i]]`. Rotations are
@@ -254,7 +274,6 @@ fn run_sized<T: Real, R: Send + Copy>(
     plans: &[&CpuCorrelator<T>],
     plan_of: &[usize],
     indices: &[usize],
-    buffers: Buffers,
     score: impl Fn(&CpuCorrelator<T>, &mut Workspace<T>, usize) -> R + Sync,
 ) -> Result<(Vec<R>, StageTimes)> {
     // Nothing to score: no worker, no workspace (a re-scoring splits its rotations into two
@@ -270,7 +289,6 @@ fn run_sized<T: Real, R: Send + Copy>(
         plans,
         plan_of,
         indices,
-        buffers,
         order,
         next: AtomicUsize::new(0),
         done: AtomicUsize::new(0),
@@ -316,7 +334,6 @@ struct Pass<'p, 'c, 's, T: Real, R> {
     plans: &'p [&'p CpuCorrelator<T>],
     plan_of: &'p [usize],
     indices: &'p [usize],
-    buffers: Buffers,
     order: Vec<usize>,
     next: AtomicUsize,
     done: AtomicUsize,
@@ -334,7 +351,7 @@ impl<T: Real, R: Send + Copy> Pass<'_, '_, '_, T, R> {
         let (src, s) = (self.src, self.src.voxel);
         let mut plan = self.plan_of[self.order[0]];
         let mut ws = Workspace::default();
-        self.buffers.fit(self.plans[plan], &mut ws);
+        self.plans[plan].fit_grid(&mut ws);
         let mut t_vox = Duration::ZERO;
         let mut local: Vec<(usize, R)> = Vec::new();
         loop {
@@ -348,7 +365,7 @@ impl<T: Real, R: Send + Copy> Pass<'_, '_, '_, T, R> {
             };
             if self.plan_of[slot] != plan {
                 plan = self.plan_of[slot];
-                self.buffers.fit(self.plans[plan], &mut ws);
+                self.plans[plan].fit_grid(&mut ws);
             }
             let k = self.indices[slot];
             let tv = Instant::now();

@@ -23,7 +23,8 @@ pub struct Hypothesis {
 /// Wall-clock and CPU times of the stages, in milliseconds.
 #[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
 pub struct Timings {
-    /// Target voxelization and kernel spectrum (wall).
+    /// Target voxelization and the correlator's plans (wall). The kernel spectrum is computed
+    /// when a rotation is first correlated by the transforms, so it counts in the scoring.
     pub target_ms: f64,
     /// Rotated source extents for all rotations (wall).
     pub extents_ms: f64,

@@ -38,7 +38,7 @@ fn volume(len: [usize; 3]) -> usize {
 /// documentation).
 pub struct SizedPlans {
     full: CpuCorrelator<f32>,
-    kernel: Occupancy,
+    kernel: Arc<Occupancy>,
     extra: Mutex<Vec<Arc<CpuCorrelator<f32>>>>,
 }
 
@@ -60,7 +60,7 @@ impl Assignment {
 
 impl SizedPlans {
     /// The full plan `full` of `kernel`, with no extra plan yet.
-    pub fn new(full: CpuCorrelator<f32>, kernel: Occupancy) -> Self {
+    pub fn new(full: CpuCorrelator<f32>, kernel: Arc<Occupancy>) -> Self {
         SizedPlans {
             full,
             kernel,
@@ -142,7 +142,9 @@ impl SizedPlans {
         }
         let made: Vec<CpuCorrelator<f32>> = pool.install(|| {
             make.into_par_iter()
-                .map(|g| CpuCorrelator::with_window(g, &self.kernel, self.full.window()))
+                .map(|g| {
+                    CpuCorrelator::with_shared_kernel(g, self.kernel.clone(), self.full.window())
+                })
                 .collect()
         });
         extra.extend(made.into_iter().map(Arc::new));
@@ -211,7 +213,10 @@ mod tests {
         ];
         let boxes: Vec<_> = dims.iter().map(|&d| boxed(d)).collect();
         let full_geo = Geometry::new(kernel.dims, [20, 19, 18]);
-        let sized = SizedPlans::new(CpuCorrelator::<f32>::new(full_geo, &kernel), kernel);
+        let sized = SizedPlans::new(
+            CpuCorrelator::<f32>::new(full_geo, &kernel),
+            Arc::new(kernel),
+        );
         let idx: Vec<usize> = (0..dims.len()).collect();
         let a = sized.assign(&pool(), &boxes, &idx);
         let plans = a.plans(&sized);
