@@ -202,7 +202,8 @@ impl Correlator for CpuPlan {
 /// ([`Workspace::direct_best`]): its expected cost is below the transforms' at the rotation's
 /// plan with twice as many source runs as the unrotated source occupies cells (a run holds one
 /// or more occupied cells; a rotation rarely doubles their count), at most one per point. Only
-/// when the spectra are computed depends on it, never a score.
+/// when the spectra are computed depends on it, never a score. The cells are counted only
+/// when even a single run leaves every rotation to the exact paths.
 fn likely_exact_paths(
     kernels: &ExactKernels,
     plans: &[&CpuCorrelator<f32>],
@@ -210,21 +211,26 @@ fn likely_exact_paths(
     src: &RotatedSources<'_>,
     indices: &[usize],
 ) -> bool {
+    let exact_paths_with = |runs: usize| {
+        indices.iter().zip(plan_of).all(|(&k, &p)| {
+            let Some(b) = src.boxes[k] else {
+                return false;
+            };
+            let fft = plans[p].geometry().flops(b.dims);
+            let dense = (kernels.dense.as_ref()).map_or(f64::INFINITY, |d| d.cost(b.dims, runs));
+            let sparse = (kernels.sparse.as_ref()).map_or(f64::INFINITY, |s| s.cost(b.dims, runs));
+            dense.min(sparse) < fft
+        })
+    };
+    if !exact_paths_with(1) {
+        return false;
+    }
     let points = &src.cloud.points;
     let cells: std::collections::HashSet<[i64; 3]> = points
         .iter()
         .map(|p| p.map(|c| (c / src.voxel).floor() as i64))
         .collect();
-    let runs = (2 * cells.len()).min(points.len());
-    indices.iter().zip(plan_of).all(|(&k, &p)| {
-        let Some(b) = src.boxes[k] else {
-            return false;
-        };
-        let fft = plans[p].geometry().flops(b.dims);
-        let dense = (kernels.dense.as_ref()).map_or(f64::INFINITY, |d| d.cost(b.dims, runs));
-        let sparse = (kernels.sparse.as_ref()).map_or(f64::INFINITY, |s| s.cost(b.dims, runs));
-        dense.min(sparse) < fft
-    })
+    exact_paths_with((2 * cells.len()).min(points.len()))
 }
 
 /// Score the rotations `indices` with `score` (one call per rotation, in a worker's
