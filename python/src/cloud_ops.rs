@@ -36,10 +36,9 @@ pub(crate) fn estimate_normals<'py>(
     }
     let pts = points_of("points", points)?;
     let normals = py.detach(|| {
-        let index = refine::neighbors::PointIndex::new(&pts);
-        refine::covariance::local_shapes(&pts, &index, neighbors, 1e-3)
+        refine::estimate_normals(&pts, neighbors)
             .iter()
-            .map(|s| [s.normal.x, s.normal.y, s.normal.z])
+            .map(|n| [n.x, n.y, n.z])
             .collect::<Vec<_>>()
     });
     points_array(py, &normals)

@@ -1,5 +1,5 @@
 //! Stage benchmarks of the coarse search on a real 40k-point pair (tests/data/bun045.ply →
-//! bun000.ply, Stanford bunny, 5 mm voxel, limited15): `cargo bench -p ggs --bench stages`.
+//! bun000.ply, Stanford bunny, 5 mm voxel, limited15): `cargo bench -p ggs --features internals --bench stages`.
 //!
 //! Per rotation: voxelize the rotated source, forward FFT (z, y), x stage (FFT, spectrum
 //! product, inverse), inverse FFT (y, z) + argmax, each in f32 and f64; then all 1886

@@ -29,6 +29,17 @@
 // Grid and matrix code indexes several arrays with one axis variable; iterators would hide it.
 #![allow(clippy::needless_range_loop)]
 
+/// Declares modules that are building blocks of a stage: crate-private, and public only
+/// with the `internals` feature (the stage benchmarks and timing probes; no stability promise).
+macro_rules! internal_modules {
+    ($($name:ident),* $(,)?) => {$(
+        #[cfg(feature = "internals")]
+        pub mod $name;
+        #[cfg(not(feature = "internals"))]
+        pub(crate) mod $name;
+    )*};
+}
+
 pub mod align;
 pub mod cloud;
 pub mod coarse;

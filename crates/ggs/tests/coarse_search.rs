@@ -612,11 +612,9 @@ fn coarse_to_fine_parameters_are_checked() {
 /// counts the rotations it is asked to score.
 mod second_backend {
     use ggs::coarse::correlator::{
-        Backend, BestOffset, Correlator, PassControl, RotatedSources, Scores, StageTimes,
+        Backend, BestOffset, Correlator, PassControl, PassTimes, RotatedSources, Scores,
     };
-    use ggs::coarse::geometry::Geometry;
-    use ggs::coarse::voxel::Occupancy;
-    use ggs::coarse::CpuBackend;
+    use ggs::coarse::{CpuBackend, Geometry, Occupancy};
     use std::sync::atomic::{AtomicUsize, Ordering};
     use std::sync::Arc;
 
@@ -659,7 +657,7 @@ mod second_backend {
             ctl: &PassControl<'_>,
             src: &RotatedSources<'_>,
             indices: &[usize],
-        ) -> ggs::Result<(Vec<BestOffset>, StageTimes)> {
+        ) -> ggs::Result<(Vec<BestOffset>, PassTimes)> {
             self.scored.fetch_add(indices.len(), Ordering::Relaxed);
             self.inner.exact(ctl, src, indices)
         }

@@ -147,9 +147,7 @@ impl From<BestOffset> for ApproxBest {
 }
 
 /// Exact scores as intervals of width 0, for a correlator with no approximate path.
-pub fn as_intervals(
-    (exact, times): (Vec<BestOffset>, StageTimes),
-) -> (Vec<ApproxBest>, StageTimes) {
+pub fn as_intervals((exact, times): (Vec<BestOffset>, PassTimes)) -> (Vec<ApproxBest>, PassTimes) {
     (exact.into_iter().map(ApproxBest::from).collect(), times)
 }
 
@@ -167,7 +165,7 @@ pub enum Scores {
 /// Work done by a pass, summed over workers: CPU time per stage, the exactness check and
 /// the nominal FLOPs. A backend that cannot split its time reports what it has.
 #[derive(Debug, Clone, Copy, Default)]
-pub struct StageTimes {
+pub struct PassTimes {
     pub voxelize: Duration,
     pub forward: Duration,
     pub product: Duration,
@@ -180,8 +178,8 @@ pub struct StageTimes {
     pub flops: f64,
 }
 
-impl StageTimes {
-    pub fn add(&mut self, o: &StageTimes) {
+impl PassTimes {
+    pub fn add(&mut self, o: &PassTimes) {
         self.voxelize += o.voxelize;
         self.forward += o.forward;
         self.product += o.product;
@@ -228,7 +226,7 @@ pub trait Correlator: Send + Sync {
         ctl: &PassControl<'_>,
         src: &RotatedSources<'_>,
         indices: &[usize],
-    ) -> Result<(Vec<BestOffset>, StageTimes)>;
+    ) -> Result<(Vec<BestOffset>, PassTimes)>;
     /// Exact re-scoring of the rotations `indices` where it matters against a floor: the exact
     /// best of `indices[i]` when it reaches `at_least`, else [`Rescored::Below`] or the exact
     /// best. `candidates[i]` are the candidates of its approximate best: a backend may then
@@ -241,7 +239,7 @@ pub trait Correlator: Send + Sync {
         indices: &[usize],
         candidates: &[Candidates],
         at_least: f64,
-    ) -> Result<(Vec<Rescored>, StageTimes)> {
+    ) -> Result<(Vec<Rescored>, PassTimes)> {
         debug_assert_eq!(indices.len(), candidates.len());
         let _ = at_least;
         let (found, times) = self.exact(ctl, src, indices)?;
@@ -254,7 +252,7 @@ pub trait Correlator: Send + Sync {
         ctl: &PassControl<'_>,
         src: &RotatedSources<'_>,
         indices: &[usize],
-    ) -> Result<(Vec<ApproxBest>, StageTimes)> {
+    ) -> Result<(Vec<ApproxBest>, PassTimes)> {
         Ok(as_intervals(self.exact(ctl, src, indices)?))
     }
 }

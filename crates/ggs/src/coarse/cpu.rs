@@ -32,7 +32,9 @@
 pub use super::correlator::{ApproxBest, BestOffset, Candidates, MAX_CANDIDATES};
 use super::direct::{DirectKernel, DirectScratch};
 use super::geometry::X_BLOCK;
-pub use super::geometry::{fast_len, is_3_smooth, Geometry};
+#[cfg(feature = "internals")]
+pub use super::geometry::{fast_len, is_3_smooth};
+pub use super::geometry::Geometry;
 use super::grid_view::GridView;
 pub use super::grid_view::Real;
 use super::sparse::{SparseKernel, SparseScratch};
@@ -309,11 +311,13 @@ impl<T: Real> Workspace<T> {
 
     /// The current source grid: its cells (cell `(i, j, k)` at `i·sx + j·sy + k`), the strides
     /// `[sx, sy]` and its dims.
+    #[cfg(feature = "internals")]
     pub fn source_grid(&self) -> (&[T], [usize; 2], [usize; 3]) {
         (&self.real, [self.ay * self.lz, self.lz], self.ns)
     }
 
     /// Mark cell (i, j, k) of the current source grid as occupied.
+    #[cfg(any(test, feature = "internals"))]
     #[inline]
     pub fn set(&mut self, i: usize, j: usize, k: usize) {
         let lz = self.lz;
@@ -987,6 +991,7 @@ impl CpuCorrelator<f64> {
     }
 
     /// Every match score `m(a)`, in x-major C order over `a ∈ [0, NS)` (for tests and tools).
+    #[cfg(any(test, feature = "internals"))]
     pub fn all_scores(&self, ws: &mut Workspace<f64>) -> Vec<i64> {
         let mut out = Vec::with_capacity(ws.ns.iter().product());
         self.exact_scores(ws, |m, _| out.push(m));
@@ -1008,6 +1013,7 @@ impl CpuCorrelator<f64> {
 /// Brute-force match scores, straight from the definition (docs/method.md, "The score"): pad the
 /// source "same" with −1, correlate with the ±1/5 kernel, and subtract the constant
 /// `|K| − 6·n_k` then divide by 6. Returns `m(a)` in x-major C order. For tests.
+#[cfg(any(test, feature = "internals"))]
 pub fn brute_force_scores(source: &Occupancy, kernel: &Occupancy) -> Vec<i64> {
     let nr = kernel.dims;
     let ns = source.dims;

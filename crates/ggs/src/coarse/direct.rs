@@ -31,7 +31,7 @@ pub const MAX_OCCUPIED: usize = 6553;
 
 /// Direct correlation is chosen when it needs fewer 16-offset additions than this many per
 /// nominal FLOP of the transforms ([`Geometry::flops`]). Fitted on the coarse levels of four
-/// pairs on the development machine (AMD EPYC, AVX2; `examples/direct_probe.rs`), where the
+/// pairs on the development machine (AMD EPYC, AVX2; `benches/direct_probe.rs`), where the
 /// time of direct over transforms was 0.54 at 0.026 additions a FLOP (the generated human
 /// pair), 0.63 at 0.038 (lidar_koide), 0.89 at 0.057 (3dmatch_demo) and 0.95 at 0.062 (the
 /// bunny pair): even near 0.066. Only the time depends on it, never the scores.
@@ -159,6 +159,7 @@ impl DirectKernel {
 
     /// Score rows a direct correlation of the cells gathered in `scratch` adds to, each once
     /// per column (an upper bound, as [`Self::additions`]).
+    #[cfg(feature = "internals")]
     pub fn rows_touched(&self, scratch: &DirectScratch) -> usize {
         scratch.columns.len() * self.nr[0] * self.nr[1]
     }

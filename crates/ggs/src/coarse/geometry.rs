@@ -66,7 +66,7 @@ impl Geometry {
     }
 
     /// [`Geometry::new`] at the FFT lengths `fft_len` instead of the ones `source_max` needs:
-    /// a smaller plan beside a full one ([`super::sized`]). `source_max` stays the full
+    /// a smaller plan beside a full one (`super::sized`). `source_max` stays the full
     /// plan's (it sizes a workspace's rows); every source correlated at this geometry must
     /// fit `fft_len` (`L_d ≥ max(NS_d, NR_d) + floor(NR_d/2)`).
     pub fn with_fft_len(

@@ -2,7 +2,7 @@
 //! and the kept rotations with their grid neighbours.
 
 use super::config::{CoarseToFine, SearchConfig};
-use super::correlator::{ApproxBest, Backend, PassControl, RotatedSources, Scores, StageTimes};
+use super::correlator::{ApproxBest, Backend, PassControl, RotatedSources, Scores, PassTimes};
 use super::extents::{geometry_for, rotated_boxes, target_kernel, RotatedBox};
 use super::prepared::Prepared;
 use super::result::{CoarseLevel, LevelHypothesis};
@@ -25,7 +25,7 @@ pub(super) fn coarse_candidates(
     set: &RotationSet,
     cfg: &SearchConfig,
     c: &CoarseToFine,
-) -> Result<(CoarseLevel, StageTimes)> {
+) -> Result<(CoarseLevel, PassTimes)> {
     let s0 = cfg.voxel * c.factor;
     let n = prep.rows.len();
     let thinned = Cloud::new(cell_centroids(&prep.source.points, s0 / 4.0));

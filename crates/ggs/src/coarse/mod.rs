@@ -1,23 +1,25 @@
 //! The coarse search of Greedy Grid Search (docs/method.md): every rotation of a set, the
 //! best translation of each by FFT correlation, the best (rotation, translation) overall.
 //!
-//! The stages, in the order one search runs them ([`coarse_register`]):
+//! The stages, in the order one search runs them ([`coarse_register`]); the modules behind
+//! them are crate-private (public with the `internals` feature, for the benchmarks):
 //!
-//! 1. [`source`]: the source's representatives (dense clouds) and [`rotated::RotatableCloud`],
-//!    the centred source prepared for many rotations (its voxelization runs in the vector
-//!    blocks of the private module `blocks`);
-//! 2. [`extents`]: the exact box of every rotated copy, hence its grid and the FFT
-//!    [`Geometry`](cpu::Geometry);
-//! 3. [`voxel`]: the target's occupancy (the kernel) and the voxel arithmetic both sides share;
-//! 4. [`correlator`]: the [`Correlator`] trait a backend implements, with the CPU backend
-//!    [`cpu`] (FFT plans, kernel spectrum, per-thread workspaces, f32 and f64), [`direct`]
-//!    (exact direct correlation of small grids) and [`sparse`] (exact correlation over the
-//!    pairs of occupied cells of sparse grids), each used where it is cheaper than the
+//! 1. `source`: the source's representatives (dense clouds, [`representatives`]) and
+//!    `rotated::RotatableCloud`, the centred source prepared for many rotations (its
+//!    voxelization runs in the vector blocks of `blocks`);
+//! 2. `extents`: the exact box of every rotated copy, hence its grid and the FFT
+//!    [`Geometry`];
+//! 3. `voxel`: the target's [`Occupancy`] (the kernel) and the voxel arithmetic both sides
+//!    share;
+//! 4. [`correlator`]: the [`Correlator`] trait a [`Backend`] implements, with the CPU backend
+//!    ([`CpuBackend`]: `cpu`, FFT plans, kernel spectrum, per-thread workspaces, f32 and f64),
+//!    `direct` (exact direct correlation of small grids) and `sparse` (exact correlation over
+//!    the pairs of occupied cells of sparse grids), each used where it is cheaper than the
 //!    transforms;
-//! 5. [`passes`]: a scoring pass over a list of rotations on a backend;
-//! 6. [`levels`]: the coarse level of a coarse-to-fine search (rank at a coarser voxel, keep
+//! 5. `passes`: a scoring pass over a list of rotations on a backend;
+//! 6. `levels`: the coarse level of a coarse-to-fine search (rank at a coarser voxel, keep
 //!    the best and their neighbours);
-//! 7. [`selection`]: the exact selection (exact re-scoring where the f32 bound requires) and the
+//! 7. `selection`: the exact selection (exact re-scoring where the f32 bound requires) and the
 //!    distinct hypotheses;
 //! 8. [`result`]: the hypotheses, the statistics and the timings.
 //!
@@ -29,9 +31,9 @@
 //! Precision ([`Precision::Mixed`], the default): rotations are scored in f32 with a proven
 //! error bound and every rotation whose bound could reach the winner (or a top-k hypothesis,
 //! or the runner-up) is re-scored exactly (integer counts at the offsets the bound leaves
-//! open, in the private module `at_offsets`, or an f64 correlation where they are many), so
-//! the picks are the all-f64 ones ([`selection::exact_best`]). On sparse targets the kernel's
-//! empty window is counted beside the transforms ([`cpu::KernelWindow`]), which shrinks the
+//! open, in `at_offsets`, or an f64 correlation where they are many), so
+//! the picks are the all-f64 ones (`selection::exact_best`). On sparse targets the kernel's
+//! empty window is counted beside the transforms (`cpu::KernelWindow`), which shrinks the
 //! bound.
 //!
 //! Modes: [`SearchMode::Exhaustive`] scores every rotation at the voxel size;
@@ -43,36 +45,28 @@ mod at_offsets;
 mod blocks;
 pub mod config;
 pub mod correlator;
-pub mod cpu;
-pub mod direct;
-pub mod extents;
 mod fine;
-pub mod geometry;
-pub mod grid_view;
-pub mod levels;
 mod memory_model;
-pub mod passes;
 mod prepared;
 mod register;
 pub mod result;
-pub mod rotated;
-pub mod selection;
-pub mod sized;
-pub mod source;
-pub mod sparse;
 mod staged;
 mod transpose;
-pub mod voxel;
 mod window;
-pub mod zaxis;
+internal_modules!(
+    cpu, direct, extents, geometry, grid_view, levels, passes, rotated, selection, sized, source,
+    sparse, voxel, zaxis,
+);
 
 pub use config::{
     auto_voxel, round_2_digits, CoarseToFine, Precision, ProgressFn, SearchConfig, SearchMode,
     COARSE_LEVEL_HYPOTHESES,
 };
 pub use correlator::{Backend, Correlator, Scores};
+pub use geometry::Geometry;
 pub use passes::CpuBackend;
 pub use register::{coarse_register, coarse_register_with};
 pub use result::{CoarseLevel, Hypothesis, LevelHypothesis, SearchResult, SearchStats, Timings};
 pub use source::{representatives, MIN_POINTS_PER_REPRESENTATIVE, REPRESENTATIVE_DIVISIONS};
 pub use staged::{PreparedSearch, Search};
+pub use voxel::Occupancy;

@@ -9,7 +9,7 @@
 
 use super::correlator::{
     as_intervals, ApproxBest, Backend, BestOffset, Candidates, Correlator, PassControl, Rescored,
-    RotatedSources, Scores, StageTimes,
+    RotatedSources, Scores, PassTimes,
 };
 use super::cpu::{CpuCorrelator, ExactKernels, KernelWindow, Real, Workspace};
 use rayon::prelude::*;
@@ -106,7 +106,7 @@ impl Correlator for CpuPlan {
         ctl: &PassControl<'_>,
         src: &RotatedSources<'_>,
         indices: &[usize],
-    ) -> Result<(Vec<BestOffset>, StageTimes)> {
+    ) -> Result<(Vec<BestOffset>, PassTimes)> {
         match self {
             CpuPlan::Mixed(c, ..) | CpuPlan::Exact(c) => {
                 run_pass(ctl, src, c, indices, |c, ws, _| c.best_offset(ws))
@@ -129,7 +129,7 @@ impl Correlator for CpuPlan {
         indices: &[usize],
         candidates: &[Candidates],
         at_least: f64,
-    ) -> Result<(Vec<Rescored>, StageTimes)> {
+    ) -> Result<(Vec<Rescored>, PassTimes)> {
         let CpuPlan::Mixed(_, sized, _) = self else {
             let (found, times) = self.exact(ctl, src, indices)?;
             return Ok((found.into_iter().map(Rescored::Exact).collect(), times));
@@ -179,7 +179,7 @@ impl Correlator for CpuPlan {
         ctl: &PassControl<'_>,
         src: &RotatedSources<'_>,
         indices: &[usize],
-    ) -> Result<(Vec<ApproxBest>, StageTimes)> {
+    ) -> Result<(Vec<ApproxBest>, PassTimes)> {
         match self {
             CpuPlan::Approximate(sized, kernels) => {
                 sized_pass(ctl, src, (sized, kernels), indices, |c, ws| {
@@ -241,7 +241,7 @@ fn run_pass<T: Real, R: Send + Copy>(
     corr: &CpuCorrelator<T>,
     indices: &[usize],
     score: impl Fn(&CpuCorrelator<T>, &mut Workspace<T>, usize) -> R + Sync,
-) -> Result<(Vec<R>, StageTimes)> {
+) -> Result<(Vec<R>, PassTimes)> {
     let plan_of = vec![0; indices.len()];
     run_sized(ctl, src, &[corr], &plan_of, indices, score)
 }
@@ -256,7 +256,7 @@ fn sized_pass(
     (sized, kernels): (&SizedPlans, &ExactKernels),
     indices: &[usize],
     score: impl Fn(&CpuCorrelator<f32>, &mut Workspace<f32>) -> ApproxBest + Sync,
-) -> Result<(Vec<ApproxBest>, StageTimes)> {
+) -> Result<(Vec<ApproxBest>, PassTimes)> {
     let a = sized.assign(ctl.pool, src.boxes, indices);
     let plans = a.plans(sized);
     if !likely_exact_paths(kernels, &plans, &a.plan_of, src, indices) {
@@ -281,11 +281,11 @@ fn run_sized<T: Real, R: Send + Copy>(
     plan_of: &[usize],
     indices: &[usize],
     score: impl Fn(&CpuCorrelator<T>, &mut Workspace<T>, usize) -> R + Sync,
-) -> Result<(Vec<R>, StageTimes)> {
+) -> Result<(Vec<R>, PassTimes)> {
     // Nothing to score: no worker, no workspace (a re-scoring splits its rotations into two
     // passes, one of them often empty).
     if indices.is_empty() {
-        return Ok((Vec::new(), StageTimes::default()));
+        return Ok((Vec::new(), PassTimes::default()));
     }
     let mut order: Vec<usize> = (0..indices.len()).collect();
     order.sort_by_key(|&i| plan_of[i]);
@@ -299,7 +299,7 @@ fn run_sized<T: Real, R: Send + Copy>(
         next: AtomicUsize::new(0),
         done: AtomicUsize::new(0),
         slots: Mutex::new(vec![None; indices.len()]),
-        stats: Mutex::new(StageTimes::default()),
+        stats: Mutex::new(PassTimes::default()),
         skipped_flops: AtomicU64::new(0),
         cancelled: AtomicBool::new(false),
     };
@@ -344,7 +344,7 @@ struct Pass<'p, 'c, 's, T: Real, R> {
     next: AtomicUsize,
     done: AtomicUsize,
     slots: Mutex<Vec<Option<R>>>,
-    stats: Mutex<StageTimes>,
+    stats: Mutex<PassTimes>,
     /// Nominal FLOPs of the rotations correlated directly instead ([`Workspace::direct_best`]).
     skipped_flops: AtomicU64,
     cancelled: AtomicBool,
@@ -390,7 +390,7 @@ impl<T: Real, R: Send + Copy> Pass<'_, '_, '_, T, R> {
         for (slot, r) in local {
             slots[slot] = Some(r);
         }
-        self.stats.lock().expect(lock).add(&StageTimes {
+        self.stats.lock().expect(lock).add(&PassTimes {
             voxelize: t_vox,
             forward: ws.t_forward,
             product: ws.t_product,
@@ -411,7 +411,7 @@ mod tests {
     #[test]
     fn stage_times_add_up() {
         let ms = Duration::from_millis;
-        let mut a = StageTimes {
+        let mut a = PassTimes {
             voxelize: ms(1),
             forward: ms(2),
             product: ms(3),
@@ -420,7 +420,7 @@ mod tests {
             max_rounding_error: 1e-9,
             flops: 10.0,
         };
-        a.add(&StageTimes {
+        a.add(&PassTimes {
             voxelize: ms(10),
             forward: ms(20),
             product: ms(30),

@@ -9,6 +9,7 @@
 //! point order (the coarse level's thinning of these points does, in the last bits of its
 //! means).
 
+#[cfg(any(test, feature = "internals"))]
 pub use super::blocks::dot_row;
 use super::blocks::{Coords, ExactPath, RotationBlocks};
 pub use super::grid_view::GridView;
@@ -18,7 +19,7 @@ use crate::cloud::{Cloud, Point};
 /// Divisions per axis of the cluster grid over the cloud's box: `∛n / 2.5` within
 /// `[8, 32]`, so about `n^(2/3) / 4` clusters on a surface. The extents' cost is one
 /// projection per cluster plus the points of the ten or so clusters near the extremes;
-/// measured on the bunny scan (`examples/range_probe.rs`, 6360 rotations): 8 divisions best
+/// measured on the bunny scan (`benches/range_probe.rs`, 6360 rotations): 8 divisions best
 /// at 1367 points (2.0 µs a rotation; 1.1 µs since the projections are kept between the
 /// two passes, where 6 divisions give 1.0 µs but slow the voxelization 2.2 → 3.3 µs), 12–13
 /// at 40 097 (8.5 µs against 12 at 8; 6.2 µs now).

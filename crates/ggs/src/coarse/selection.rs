@@ -9,7 +9,7 @@
 
 use super::correlator::{
     ApproxBest, BestOffset, Candidates, Correlator, PassControl, Rescored, RotatedSources,
-    StageTimes,
+    PassTimes,
 };
 use crate::error::Result;
 use std::time::{Duration, Instant};
@@ -17,7 +17,7 @@ use std::time::{Duration, Instant};
 /// Work counters of a search: stage times, and the exact re-scoring.
 #[derive(Debug, Default)]
 pub struct Tally {
-    pub times: StageTimes,
+    pub times: PassTimes,
     pub rescored: usize,
     pub rescore_time: Duration,
 }

@@ -32,7 +32,7 @@ pub const MAX_PAIRED: usize = 5461;
 
 /// Costs of a sparse correlation in nominal FLOPs of the transforms that take as long
 /// ([`SparseKernel::cost`]), fitted on the development machine (AMD EPYC, 2 cores, the AVX2 path;
-/// `examples/direct_probe.rs`, every rotation of `hopf15-id`) where the transforms took about
+/// `benches/direct_probe.rs`, every rotation of `hopf15-id`) where the transforms took about
 /// 34 ps a FLOP: 68 µs a rotation for 26 713 run pairs and 15 912 offsets (the generated
 /// human pair at its voxel size; the transforms 192 µs), 412 µs for 353 160 and 24 828 (the
 /// bunny pair; the transforms 284 µs), 131 µs for 85 014 and 14 007 (PCL's 400-point bunny
@@ -140,11 +140,13 @@ impl SparseKernel {
     }
 
     /// Runs along z of the occupied kernel cells (at most [`MAX_RUN`] cells each).
+    #[cfg(feature = "internals")]
     pub fn runs(&self) -> usize {
         self.runs.len()
     }
 
     /// Occupied kernel cells `n_k`.
+    #[cfg(feature = "internals")]
     pub fn occupied(&self) -> usize {
         self.occupied
     }

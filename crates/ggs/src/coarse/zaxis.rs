@@ -4,7 +4,7 @@
 //! and its inverse ends with one complex-to-real FFT per row of valid offsets: 121 rows of 16
 //! at the default coarse level, 1640 rows of 48 at the bunny pair's voxel. realfft does one
 //! call per row, and on rows this short the call costs more than the transform. Measured on
-//! this machine (`cargo run --release --example z_transforms -p ggs`: f32, 40 rows in cache,
+//! this machine (`cargo bench -p ggs --features internals --bench z_transforms`: f32, 40 rows in cache,
 //! ns per row, this module's transforms), forward: 25 ns a row of 16 against 13 for a complex FFT of the same rows
 //! (zero imaginary parts) in one rustfft call, copies in and out included; 59 against 37 at
 //! 48, 72 against 53 at 64, 82 against 61 at 72, but 110 against 135 at 96. The inverse must
@@ -61,11 +61,13 @@ impl<T: Real> ZAxis<T> {
     }
 
     /// realfft one row at a time, both ways.
+    #[cfg(any(test, feature = "internals"))]
     pub fn per_row(len: usize) -> Self {
         Self::with_limits(len, 0, 0)
     }
 
     /// Batched both ways.
+    #[cfg(any(test, feature = "internals"))]
     pub fn batched(len: usize) -> Self {
         Self::with_limits(len, len, len)
     }

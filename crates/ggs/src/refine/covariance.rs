@@ -133,6 +133,7 @@ impl Moments {
 }
 
 /// Shape of a neighbourhood given as points.
+#[cfg(any(test, feature = "internals"))]
 pub fn shape_of(points: &[Point], epsilon: f64) -> LocalShape {
     let mut m = Moments::new(points.first().unwrap_or(&[0.0; 3]));
     for p in points {
@@ -314,6 +315,7 @@ impl LazyShapes {
     }
 
     /// How many shapes were computed so far.
+    #[cfg(any(test, feature = "internals"))]
     pub fn computed(&self) -> usize {
         self.slots
             .iter()

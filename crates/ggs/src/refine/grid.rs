@@ -215,6 +215,7 @@ impl CellGrid {
     }
 
     /// Cell size.
+    #[cfg(feature = "internals")]
     pub fn cell_size(&self) -> f64 {
         self.h
     }
@@ -357,11 +358,13 @@ impl CellGrid {
     }
 
     /// Number of points.
+    #[cfg(feature = "internals")]
     pub fn len(&self) -> usize {
         self.order.len()
     }
 
     /// Whether the grid holds no point (never: [`Self::new`] refuses an empty cloud).
+    #[cfg(feature = "internals")]
     pub fn is_empty(&self) -> bool {
         self.order.is_empty()
     }

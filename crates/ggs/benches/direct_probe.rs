@@ -3,10 +3,12 @@
 //! (`coarse::direct`) and sparse correlation (`coarse::sparse`), over every rotation of
 //! `hopf15-id`, checks that all give the same best offset and score, and counts which one the
 //! cost model (`Workspace::direct_best`) would pick:
-//! `cargo run --release --example direct_probe -p ggs -- SOURCE TARGET VOXEL [FACTOR]`
+//! `cargo bench -p ggs --features internals --bench direct_probe -- SOURCE TARGET VOXEL [FACTOR]`
 //! (`FACTOR`, default 4: the level's voxel is `FACTOR × VOXEL`, the source thinned to one
 //! point per cell of a quarter of it, as the default preset's coarse level does; 1: the
 //! voxel-size level, on representatives as thinned).
+mod common;
+
 use ggs::coarse::cpu::{CpuCorrelator, Workspace};
 use ggs::coarse::direct::{DirectKernel, DirectScratch};
 use ggs::coarse::extents::{geometry_for, rotated_boxes, rows, target_kernel};
@@ -18,7 +20,7 @@ use ggs::Cloud;
 use std::time::Instant;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let args: Vec<String> = std::env::args().collect();
+    let args: Vec<String> = common::args().collect();
     if args.len() < 4 {
         return Err("usage: direct_probe SOURCE TARGET VOXEL [FACTOR]".into());
     }

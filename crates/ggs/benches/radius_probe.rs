@@ -1,13 +1,15 @@
 //! Times `RadiusSearch::nearest` and `nearest_near` (with the previous answer as hint) on
 //! one thread:
-//! `cargo run --release --example radius_probe -p ggs -- SOURCE TARGET CELL R [SHIFT]`
+//! `cargo bench -p ggs --features internals --bench radius_probe -- SOURCE TARGET CELL R [SHIFT]`
 //! (both clouds thinned to one point per cell of `CELL`; the queries are the source points
 //! moved by `SHIFT · (1, −0.6, 0.8)`; every hinted answer is checked against the plain one).
+mod common;
+
 use ggs::refine::grid::RadiusSearch;
 use std::time::Instant;
 
 fn main() {
-    let a: Vec<String> = std::env::args().collect();
+    let a: Vec<String> = common::args().collect();
     let read = |p: &str| {
         ggs::io::read_cloud(p.as_ref(), None)
             .unwrap()

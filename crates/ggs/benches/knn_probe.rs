@@ -1,5 +1,7 @@
 //! Times the neighbour searches behind refinement on one cloud, on one thread:
-//! `cargo run --release --example knn_probe -p ggs -- CLOUD`.
+//! `cargo bench -p ggs --features internals --bench knn_probe -- CLOUD`.
+mod common;
+
 use ggs::refine::covariance::{local_shapes, Moments};
 use ggs::refine::grid::{median_kth_distance, CellGrid};
 use ggs::refine::neighbors::PointIndex;
@@ -21,7 +23,7 @@ fn min_of_5(mut f: impl FnMut()) -> f64 {
 }
 
 fn main() {
-    let path = std::env::args().nth(1).expect("usage: knn_probe CLOUD");
+    let path = common::args().nth(1).expect("usage: knn_probe CLOUD");
     let c = ggs::io::read_cloud(path.as_ref(), None).unwrap().cloud;
     let pts = &c.to_points();
     let pool = rayon::ThreadPoolBuilder::new()
@@ -81,7 +83,7 @@ fn main() {
             "{n} shapes from 20 points each, moments + eigen: {:.1} ms",
             ms(t) * 20.0
         );
-        if let Some(r) = std::env::args().nth(2).and_then(|a| a.parse::<f64>().ok()) {
+        if let Some(r) = common::args().nth(2).and_then(|a| a.parse::<f64>().ok()) {
             let g = CellGrid::new(pts, 2.0 * r).unwrap();
             println!(
                 "cells of {}: mean occupancy {:.1}",

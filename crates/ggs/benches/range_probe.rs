@@ -1,9 +1,11 @@
 //! Times the exact extents of a rotated source (`RotatableCloud::range`, three rows per
 //! rotation of `hopf15-id`) and its voxelization, and checks every extent against a plain
 //! loop over the points, bit for bit:
-//! `cargo run --release --example range_probe -p ggs -- CLOUD VOXEL [THIN]`
+//! `cargo bench -p ggs --features internals --bench range_probe -- CLOUD VOXEL [THIN]`
 //! (`THIN` > 0: the cloud first thinned to one point per cell of `VOXEL / THIN`, as the
 //! coarse level does with 4).
+mod common;
+
 use ggs::coarse::extents::rows;
 use ggs::coarse::rotated::{dot_row, GridView, RotatableCloud};
 use ggs::rotations::RotationSet;
@@ -24,7 +26,7 @@ fn best_us(reps: usize, rotations: usize, mut f: impl FnMut()) -> f64 {
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let args: Vec<String> = std::env::args().collect();
+    let args: Vec<String> = common::args().collect();
     if args.len() < 3 {
         return Err("usage: range_probe CLOUD VOXEL [THIN]".into());
     }
