@@ -89,7 +89,7 @@ class Result:
     @property
     def document(self) -> Dict[str, Any]:
         """The result as ``ggs register --json`` prints it (``format``
-        ``"ggs-registration/1"``; ``"ggs-refinement/1"`` for :func:`refine`): every field
+        ``"ggs-registration/2"``; ``"ggs-refinement/1"`` for :func:`refine`): every field
         of the run, nested as docs/cli.md, "The JSON result" describes. A deep copy."""
         return copy.deepcopy(self._document)
 
@@ -199,7 +199,7 @@ class Result:
     def verified(self) -> List[Dict[str, Any]]:
         """The verified hypotheses in coarse rank order (rank, rotation_index, match_score,
         polished_match_score, score, fitness_source, fitness_target, iterations,
-        rejected_early, at_a_glance: rejected on a random part of the points,
+        rejected_early, rejected_on_subsample: rejected on a random part of the points,
         evidence_points: the source and target points the score summed,
         free_space_violations: the share of points in the space the other cloud, a scan
         from its origin, saw through (None when neither cloud is one), level, settled,
@@ -266,7 +266,7 @@ def _verified_of(verification: Optional[Dict[str, Any]]) -> List[Dict[str, Any]]
             "match_score": h["match_score"], "polished_match_score": h["polished_match_score"],
             "score": e["score"], "fitness_source": e["fitness_source"],
             "fitness_target": e["fitness_target"], "iterations": h["iterations"],
-            "rejected_early": h["rejected_early"], "at_a_glance": h["at_a_glance"],
+            "rejected_early": h["rejected_early"], "rejected_on_subsample": h["rejected_on_subsample"],
             "evidence_points": e["points"],
             "free_space_violations": e.get("free_space_violations"),
             "level": h["level"], "settled": h["settled"], "same_as": h["same_as"],

@@ -142,10 +142,10 @@ def test_register_bundled_pair_and_result_fields():
     assert all(0.0 <= h["score"] <= 1.0 for h in r.verified)
     # Object scans are not scans from their origin: no free space is checked.
     assert all(h["free_space_violations"] is None for h in r.verified)
-    # The chosen one is scored over every sample point; one rejected at a glance over fewer.
-    assert not chosen[0]["at_a_glance"] and len(chosen[0]["evidence_points"]) == 2
+    # The chosen one is scored over every sample point; one rejected on a subsample over fewer.
+    assert not chosen[0]["rejected_on_subsample"] and len(chosen[0]["evidence_points"]) == 2
     for h in r.verified:
-        assert not h["at_a_glance"] or (
+        assert not h["rejected_on_subsample"] or (
             h["rejected_early"] and h["evidence_points"][0] < chosen[0]["evidence_points"][0]
         )
     assert {"verify_ms", "search_ms"} <= set(r.timings)
@@ -322,7 +322,7 @@ def test_equals_the_cli_bit_for_bit():
     assert r.fitness == cli["refine"]["report"]["fitness_source"]
     # One serialization: Python's document is the CLI's, less what only a process knows.
     doc = r.document
-    assert list(doc) == list(cli) and doc["format"] == "ggs-registration/1"
+    assert list(doc) == list(cli) and doc["format"] == "ggs-registration/2"
     skip = {"source", "target", "timings", "search", "refine", "read_ms", "total_ms", "peak_memory_bytes"}
     for key in set(cli) - skip:
         assert doc[key] == cli[key], key

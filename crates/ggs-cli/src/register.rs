@@ -459,8 +459,8 @@ fn print_verification(v: &Verification) -> Result<()> {
                 .free_space_violations
                 .map(|s| format!(", {:.1} % in seen free space", 100.0 * s))
                 .unwrap_or_default(),
-            match (h.rejected_early, h.at_a_glance) {
-                (true, true) => ", rejected at a glance",
+            match (h.rejected_early, h.rejected_on_subsample) {
+                (true, true) => ", rejected on a subsample",
                 (true, false) => ", rejected early",
                 _ => "",
             },

@@ -159,7 +159,7 @@ fn auto_voxel_follows_the_spacing_of_sparse_clouds_and_is_announced() {
     ]);
     let j: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert!(j["voxel_rule"].is_string());
-    assert_eq!(j["format"], "ggs-registration/1");
+    assert_eq!(j["format"], "ggs-registration/2");
     assert!(j["voxel_rule"].as_str().unwrap().contains("point spacing"));
     let v = j["voxel"].as_f64().unwrap();
     assert!((0.008..0.011).contains(&v), "voxel {v}");

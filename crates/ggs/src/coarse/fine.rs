@@ -99,11 +99,11 @@ impl<'p> FineLevel<'p> {
         }
     }
 
-    /// The first look: the `count` best rotations of the coarse order at the voxel size
-    /// (`1 ≤ count ≤` the set's size), no neighbours, no further rounds. Returns the winner among them. A later
+    /// The leading rotations: the `count` best of the coarse order at the voxel size (`1 ≤ count ≤`
+    /// the set's size), no neighbours, no further rounds. Returns the winner among them. A later
     /// [`Self::rounds`] scores only the rotations this did not (a rotation's score depends on
     /// nothing else), so the search's result after both is the one `rounds` alone gives.
-    pub(super) fn first_look(
+    pub(super) fn score_leading(
         &mut self,
         backend: &dyn Backend,
         ctl: &PassControl<'_>,

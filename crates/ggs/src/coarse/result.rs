@@ -179,8 +179,9 @@ pub struct CoarseLevel {
     /// Rank (0 = best) of the final winner by coarse score: how much margin `kept` had.
     pub winner_rank: usize,
     /// Rounds of fine scoring: `kept` doubled after each round whose winner ranked in the
-    /// lower half of it (1 when the coarse ranking was clear; 0 when only a first look ran:
-    /// its `kept` best rotations at the voxel size, without neighbours).
+    /// lower half of it (1 when the coarse ranking was clear; 0 when only the `kept` leading
+    /// rotations were scored at the voxel size, without neighbours:
+    /// [`Search::score_leading`](super::Search::score_leading)).
     pub rounds: usize,
     /// The best distinct hypotheses at this level's voxel, best first
     /// ([`CoarseToFine::hypotheses`](super::CoarseToFine::hypotheses) of them).

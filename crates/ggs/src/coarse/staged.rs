@@ -1,9 +1,9 @@
 //! A search in steps, for a caller that may stop early: [`PreparedSearch::start`] ranks
-//! every rotation at the coarse level (coarse-to-fine); [`Search::first_look`] scores only
-//! the coarse level's best few at the voxel size and picks their distinct hypotheses;
+//! every rotation at the coarse level (coarse-to-fine); [`Search::score_leading`] scores only
+//! the coarse level's leading few at the voxel size and picks their distinct hypotheses;
 //! [`Search::complete`] scores what the whole search scores and returns what
 //! [`coarse_register_with`](super::coarse_register_with) returns, bit for bit: a rotation's
-//! score depends on nothing but the rotation, so the ones the first look scored keep theirs,
+//! score depends on nothing but the rotation, so the ones scored first keep theirs,
 //! and the picks are the exact best among the scored rotations whichever were re-scored
 //! exactly on the way ([`super::selection::exact_best`]).
 
@@ -125,17 +125,20 @@ impl Search<'_, '_> {
     /// The `count` best rotations of the coarse level scored at the voxel size (no
     /// neighbours, no further rounds) and their distinct hypotheses, as a result whose
     /// coarse level says `kept: count`. An error for an exhaustive search (no coarse level).
-    pub fn first_look(&mut self, count: usize) -> Result<SearchResult> {
+    pub fn score_leading(&mut self, count: usize) -> Result<SearchResult> {
         let p = self.inputs;
         let level = self.coarse_level.as_ref().ok_or_else(|| {
-            GgsError::param("search", "a first look needs a coarse-to-fine search")
+            GgsError::param(
+                "search",
+                "scoring the leading rotations needs a coarse-to-fine search",
+            )
         })?;
         let t = Instant::now();
         let ctl = p.control();
         let count = count.clamp(1, level.order().len());
         let winner =
             self.fine
-                .first_look(self.backend, &ctl, p.cfg, level, count, &mut self.tally)?;
+                .score_leading(self.backend, &ctl, p.cfg, level, count, &mut self.tally)?;
         let picks = self
             .fine
             .distinct(&ctl, p.set, p.cfg, winner, &mut self.tally)?;
@@ -229,14 +232,14 @@ mod tests {
     }
 
     #[test]
-    fn a_first_look_then_the_rest_is_the_whole_search_bit_for_bit() {
+    fn the_leading_rotations_then_the_rest_is_the_whole_search_bit_for_bit() {
         let set = RotationSet::named("limited15").unwrap();
         let (source, target) = pair(&set);
         let cfg = coarse_to_fine();
         let whole = coarse_register(&source, &target, &set, &cfg).unwrap();
         let prepared = PreparedSearch::new(&source, &target, &set, &cfg).unwrap();
         let mut search = prepared.start(&CpuBackend).unwrap();
-        let first = search.first_look(4).unwrap();
+        let first = search.score_leading(4).unwrap();
         let rest = search.complete().unwrap();
         assert_eq!(rest.hypotheses, whole.hypotheses);
         assert_eq!(rest.runner_up, whole.runner_up);
@@ -254,13 +257,13 @@ mod tests {
     }
 
     #[test]
-    fn a_first_look_scores_only_the_best_of_the_coarse_level() {
+    fn scoring_the_leading_rotations_scores_only_the_best_of_the_coarse_level() {
         let set = RotationSet::named("limited15").unwrap();
         let (source, target) = pair(&set);
         let cfg = coarse_to_fine();
         let prepared = PreparedSearch::new(&source, &target, &set, &cfg).unwrap();
         let mut search = prepared.start(&CpuBackend).unwrap();
-        let first = search.first_look(4).unwrap();
+        let first = search.score_leading(4).unwrap();
         let level = first.stats.coarse_level.as_ref().unwrap();
         assert_eq!((first.stats.scored, level.kept, level.rounds), (4, 4, 0));
         let best = &level.order()[..4];
@@ -275,12 +278,12 @@ mod tests {
     }
 
     #[test]
-    fn an_exhaustive_search_has_no_first_look() {
+    fn an_exhaustive_search_has_no_leading_rotations() {
         let set = RotationSet::named("limited15").unwrap();
         let (source, target) = pair(&set);
         let cfg = SearchConfig::with_voxel(0.06);
         let prepared = PreparedSearch::new(&source, &target, &set, &cfg).unwrap();
         let mut search = prepared.start(&CpuBackend).unwrap();
-        assert!(search.first_look(4).is_err());
+        assert!(search.score_leading(4).is_err());
     }
 }

@@ -258,8 +258,8 @@ fn verified_table(v: &Verification) -> String {
             "chosen"
         } else if Some(k) == v.runner_up {
             "runner-up"
-        } else if h.at_a_glance {
-            "rejected at a glance"
+        } else if h.rejected_on_subsample {
+            "rejected on a subsample"
         } else if h.rejected_early {
             "rejected early"
         } else if h.same_as.is_some() {

@@ -8,7 +8,7 @@ use crate::refine::RefineResult;
 use crate::transform::Rigid;
 
 /// `format` of a [`RegistrationDocument`]: its name and layout version.
-pub const REGISTRATION_FORMAT: &str = "ggs-registration/1";
+pub const REGISTRATION_FORMAT: &str = "ggs-registration/2";
 /// `format` of a [`RefinementDocument`].
 pub const REFINEMENT_FORMAT: &str = "ggs-refinement/1";
 

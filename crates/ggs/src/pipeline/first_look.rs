@@ -152,7 +152,7 @@ mod tests {
                 },
                 iterations: 10,
                 rejected_early: false,
-                at_a_glance: false,
+                rejected_on_subsample: false,
                 settled: false,
                 same_as: None,
                 screened: false,

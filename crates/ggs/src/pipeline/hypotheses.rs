@@ -467,7 +467,7 @@ impl RankedChecks<'_> {
                 evidence: c.evidence,
                 iterations: c.iterations,
                 rejected_early: c.rejected_early,
-                at_a_glance: c.at_a_glance,
+                rejected_on_subsample: c.rejected_on_subsample,
                 settled: false,
                 same_as: c.same_as,
                 screened: stages.is_none(),

@@ -354,7 +354,9 @@ fn start_search<'a>(
     let made = PreparedSearch::new(source, target, &cfg.rotations, search)?;
     let prepared = slot.get_or_init(|| made);
     let mut running = prepared.start(&CpuBackend)?;
-    let first = look.map(|l| running.first_look(l.rotations)).transpose()?;
+    let first = look
+        .map(|l| running.score_leading(l.rotations))
+        .transpose()?;
     Ok((running, first))
 }
 

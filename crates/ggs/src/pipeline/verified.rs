@@ -31,9 +31,9 @@ pub struct VerifiedHypothesis {
     pub evidence: Evidence,
     pub iterations: usize,
     pub rejected_early: bool,
-    /// Rejected on a glance at a random part of the sample (`evidence.points`), whose estimate
+    /// Rejected on a random part of the sample (`evidence.points`), whose estimate
     /// of the score lay far below the threshold (`verify::finish`).
-    pub at_a_glance: bool,
+    pub rejected_on_subsample: bool,
     /// Refined again on finer cells because another distinct pose also survived.
     pub settled: bool,
     /// Stopped at the check on the pose of this earlier verified hypothesis (its `rank`),

@@ -71,18 +71,19 @@ pub const SAMPLE_POINTS: usize = 20_000;
 /// pair, which fits closely, lost to a flip that fits loosely (bunny_ear_back_bun270).
 pub const INDEX_POINTS: usize = 400_000;
 
-/// The glance at the check ([`finish`]) sums `⌈n/k⌉` points of each sample of `n`, drawn at
-/// random (a fixed seed), with `k` the largest whole number that leaves at least this many
-/// points of each side (no glance when `k` would be 1).
-pub const GLANCE_POINTS: usize = 2_000;
+/// The subsample estimate at the check ([`finish`]) sums `⌈n/k⌉` points of each sample of `n`,
+/// drawn at random (a fixed seed), with `k` the largest whole number that leaves at least this many
+/// points of each side (no subsample when `k` would be 1).
+pub const SUBSAMPLE_POINTS: usize = 2_000;
 
-/// Seed of the glance's draw ([`Verifier::glance`]): fixed, so a run is reproducible.
-const GLANCE_SEED: u64 = 0x6767_735f_676c_616e;
+/// Seed of the subsample's draw ([`Verifier::subsample_evidence`]): fixed, so a run is
+/// reproducible.
+const SUBSAMPLE_SEED: u64 = 0x6767_735f_676c_616e;
 
-/// A hypothesis whose glance plus this many of its standard errors
+/// A hypothesis whose subsample estimate plus this many of its standard errors
 /// ([`Evidence::standard_error`]) scores below the rejection threshold (`reject_ratio × best
-/// so far`) is rejected on the glance alone.
-pub const GLANCE_SIGMAS: f64 = 6.0;
+/// so far`) is rejected on the subsample alone.
+pub const SUBSAMPLE_SIGMAS: f64 = 6.0;
 
 /// Parameters of the verification.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
@@ -255,7 +256,7 @@ pub struct Evidence {
     /// `(f_s + f_t) / 2`.
     pub score: f64,
     /// How many source and target points the sums ran over: the samples, or the part of them
-    /// drawn for the glance for a hypothesis rejected at a glance ([`finish`]).
+    /// drawn for the subsample estimate for a hypothesis rejected on a subsample ([`finish`]).
     pub points: [usize; 2],
     /// Share of the summed points that lie in the other scan's free space
     /// ([`super::free_space`]): the mean over the sides whose other cloud is a scan from its
@@ -276,9 +277,9 @@ pub struct Verifier {
     /// With [`VerifyScore::Oriented`]: the normals of the source sample, the target sample,
     /// the source index and the target index points.
     normals: Option<[Vec<Normal>; 4]>,
-    /// The positions in each sample the glance sums ([`Self::glance`]); `None` when the
-    /// samples are too small for one.
-    glance: Option<[Vec<u32>; 2]>,
+    /// The positions in each sample the subsample estimate sums ([`Self::subsample_evidence`]);
+    /// `None` when the samples are too small for one.
+    subsample: Option<[Vec<u32>; 2]>,
     /// The free space seen by the target (tests the moved source points) and by the source
     /// (tests the target points moved back), where that cloud is a scan from its origin.
     free_space: [Option<RangeImage>; 2],
@@ -371,11 +372,11 @@ impl Verifier {
                 normals(&target_index, &target_index, &ti, &tc),
             ]
         });
-        let k = (source_sample.len().min(target_sample.len()) / GLANCE_POINTS).max(1);
-        let glance = (k > 1).then(|| {
+        let k = (source_sample.len().min(target_sample.len()) / SUBSAMPLE_POINTS).max(1);
+        let subsample = (k > 1).then(|| {
             [&source_sample, &target_sample].map(|sample| {
                 let n = sample.len();
-                let mut rng = crate::rng::Rng::stream(GLANCE_SEED, &[n as u64]);
+                let mut rng = crate::rng::Rng::stream(SUBSAMPLE_SEED, &[n as u64]);
                 draw(n, n.div_ceil(k), &mut rng)
             })
         });
@@ -390,7 +391,7 @@ impl Verifier {
             free_space_tolerance: cfg.free_space_tolerance,
             in_source: RadiusSearch::new(&source_index, distance, None),
             in_target: RadiusSearch::new(&target_index, distance, None),
-            glance,
+            subsample,
             source: source_sample,
             target: target_sample,
             distance,
@@ -447,13 +448,13 @@ impl Verifier {
         self.evidence_over(t, None)
     }
 
-    /// A glance at the evidence for `T`: the same sums over the positions drawn at random
-    /// from each sample (`⌈n/k⌉` of `n`, [`GLANCE_POINTS`]), so `score` estimates the full one
-    /// with [`Evidence::standard_error`] (a simple random sample: no scan pattern of the
-    /// file's point order can bias it, as a stride could). `None` when the samples are too
-    /// small for a glance.
-    pub fn glance(&self, t: &Rigid) -> Option<Evidence> {
-        let [s, g] = self.glance.as_ref()?;
+    /// An estimate of the evidence for `T`: the same sums over the positions drawn at random from
+    /// each sample (`⌈n/k⌉` of `n`, [`SUBSAMPLE_POINTS`]), so `score` estimates the full one with
+    /// [`Evidence::standard_error`] (a simple random sample: no scan pattern of the file's point
+    /// order can bias it, as a stride could). `None` when the samples are too small for a
+    /// subsample.
+    pub fn subsample_evidence(&self, t: &Rigid) -> Option<Evidence> {
+        let [s, g] = self.subsample.as_ref()?;
         Some(self.evidence_over(t, Some([s, g])))
     }
 
@@ -532,8 +533,8 @@ pub struct Checked {
     pub iterations: usize,
     /// Stopped at the check: its score was below `reject_ratio` × the best so far.
     pub rejected_early: bool,
-    /// Rejected on its glance ([`finish`]): `evidence` is the glance's.
-    pub at_a_glance: bool,
+    /// Rejected on its subsample estimate ([`finish`]): `evidence` is the subsample's.
+    pub rejected_on_subsample: bool,
     /// Stopped at the check: its ICP had brought it onto the pose of this earlier verified
     /// hypothesis (its index), whose evidence it carries; see [`check`].
     pub same_as: Option<usize>,
@@ -597,7 +598,7 @@ pub fn check(
 
 /// What a hypothesis is checked against: `reject_ratio` × the larger of the best score so
 /// far and a floor. The floor (the first look's accept score; 0 in the whole verification)
-/// drops a hypothesis that cannot be accepted, but only at a glance while there is no best
+/// drops a hypothesis that cannot be accepted, but only on a subsample while there is no best
 /// score yet: the full score at the check is then not worth its cost, since the second run's
 /// score replaces it.
 #[derive(Debug, Clone, Copy)]
@@ -609,16 +610,17 @@ pub struct RejectionThreshold {
 /// The rest of [`check`] after its first stage: the decision at the check and, for a
 /// hypothesis that goes on, its second run.
 ///
-/// The decision first glances at the evidence: a fixed random part of each sample
-/// ([`Verifier::glance`]; no glance when the samples are too small, nor when there is
-/// nothing to reject against). A hypothesis whose glance, raised by
-/// [`GLANCE_SIGMAS`] standard errors, still scores below `reject_ratio` × the [`RejectionThreshold`] is
-/// rejected with the glance as its evidence (`points` says so), without the full sums. The
-/// glance is the mean of the same per-point weights over a part of the same points drawn
-/// at random. Measured on the 4167 checks of the generated FP-O-H and FP-O-M pairs (50 000
-/// points, seed 2022), the full score lay within 3.4 of the glance's standard errors (mean
+/// The decision first estimates the evidence: a fixed random part of each sample
+/// ([`Verifier::subsample_evidence`]; no subsample when the samples are too small, nor when there
+/// is nothing to reject against). A hypothesis whose subsample estimate, raised by
+/// [`SUBSAMPLE_SIGMAS`] standard errors, still scores below `reject_ratio` × the
+/// [`RejectionThreshold`] is rejected with the subsample estimate as its evidence (`points` says
+/// so), without the full sums. The estimate is the mean of the same per-point weights over a part
+/// of the same points drawn at random. Measured on the 4167 checks of the generated FP-O-H and
+/// FP-O-M pairs (50 000 points, seed 2022), the full score lay within 3.4 of the subsample's
+/// standard errors (mean
 /// 0.62, 99 % within 2.0), so six leave a wide margin; 2772 of the 3278 rejections were
-/// taken at a glance, none that the full score would have kept. Every other hypothesis is
+/// taken on a subsample, none that the full score would have kept. Every other hypothesis is
 /// scored in full and decided as before.
 pub fn finish(
     first: FirstStage,
@@ -637,22 +639,22 @@ pub fn finish(
             evidence,
             iterations,
             rejected_early: false,
-            at_a_glance: false,
+            rejected_on_subsample: false,
             same_as: Some(k),
         });
     }
     let threshold = cfg.reject_ratio * rejection.best.max(rejection.floor);
     let goes_on = more_iterations(&first, cfg);
-    let at_a_glance = (threshold > 0.0)
-        .then(|| verifier.glance(&first.transform))
+    let subsample_rejection = (threshold > 0.0)
+        .then(|| verifier.subsample_evidence(&first.transform))
         .flatten()
-        .filter(|g| g.score + GLANCE_SIGMAS * g.standard_error() < threshold);
+        .filter(|g| g.score + SUBSAMPLE_SIGMAS * g.standard_error() < threshold);
     // With no score to beat (the first hypothesis: a score is never below 0) and a second run
     // to come, the score at the check would decide nothing and be replaced: skipped, unless
-    // a glance already put it below the floor.
-    let nothing_to_decide = rejection.best <= 0.0 && goes_on && at_a_glance.is_none();
+    // a subsample estimate already put it below the floor.
+    let nothing_to_decide = rejection.best <= 0.0 && goes_on && subsample_rejection.is_none();
     if !nothing_to_decide {
-        let evidence = at_a_glance.unwrap_or_else(|| verifier.evidence(&first.transform));
+        let evidence = subsample_rejection.unwrap_or_else(|| verifier.evidence(&first.transform));
         let rejected = evidence.score < threshold;
         if rejected || !goes_on {
             return Ok(Checked {
@@ -660,7 +662,7 @@ pub fn finish(
                 evidence,
                 iterations,
                 rejected_early: rejected,
-                at_a_glance: at_a_glance.is_some(),
+                rejected_on_subsample: subsample_rejection.is_some(),
                 same_as: None,
             });
         }
@@ -673,7 +675,7 @@ pub fn finish(
         evidence: verifier.evidence(&second.transform),
         iterations,
         rejected_early: false,
-        at_a_glance: false,
+        rejected_on_subsample: false,
         same_as: None,
     })
 }
@@ -987,34 +989,38 @@ mod tests {
     }
 
     #[test]
-    fn a_glance_draws_a_part_of_each_sample_and_estimates_the_full_score() {
-        // 90 × 90 = 8100 points: a glance at ⌈8100 / 4⌉ = 2025 of them (≥ GLANCE_POINTS).
+    fn a_subsample_draws_a_part_of_each_sample_and_estimates_the_full_score() {
+        // 90 × 90 = 8100 points: a subsample estimate at ⌈8100 / 4⌉ = 2025 of them (≥ SUBSAMPLE_POINTS).
         let c = plane(90);
         let v = Verifier::new(&c, &c, 0.05, 0.01, &VerifyConfig::default());
         let small = Verifier::new(&plane(60), &c, 0.05, 0.01, &VerifyConfig::default());
         let shifted = Rigid::new(Matrix3::identity(), Vector3::new(0.3, 0.0, 0.004));
-        assert_eq!(small.glance(&shifted), None);
+        assert_eq!(small.subsample_evidence(&shifted), None);
         let full = v.evidence(&shifted);
         assert_eq!(full.points, [8100, 8100]);
-        let glance = v.glance(&shifted).unwrap();
-        assert_eq!(glance.points, [2025, 2025]);
-        assert_ne!(glance, full);
-        assert_eq!(v.glance(&shifted), Some(glance), "the draw is fixed");
-        let se = glance.standard_error();
-        assert!(
-            se > 0.0 && (glance.score - full.score).abs() < 3.0 * se,
-            "{glance:?} {full:?}"
+        let estimate = v.subsample_evidence(&shifted).unwrap();
+        assert_eq!(estimate.points, [2025, 2025]);
+        assert_ne!(estimate, full);
+        assert_eq!(
+            v.subsample_evidence(&shifted),
+            Some(estimate),
+            "the draw is fixed"
         );
-        let drawn = v.glance.as_ref().unwrap();
+        let se = estimate.standard_error();
+        assert!(
+            se > 0.0 && (estimate.score - full.score).abs() < 3.0 * se,
+            "{estimate:?} {full:?}"
+        );
+        let drawn = v.subsample.as_ref().unwrap();
         for d in drawn {
             assert!(d.windows(2).all(|w| w[0] < w[1]) && *d.last().unwrap() < 8100);
         }
     }
 
     #[test]
-    fn a_scan_pattern_in_the_point_order_does_not_bias_the_glance() {
+    fn a_scan_pattern_in_the_point_order_does_not_bias_the_subsample() {
         // Every 4th source point (in file order) lies 1 m off the plane, as a scan pattern
-        // would: the full score counts 3 of 4 source points. A stride of 4 would glance at
+        // would: the full score counts 3 of 4 source points. A stride of 4 would sum
         // the lifted ones only; the random draw estimates the score within its errors.
         let c = plane(90);
         let mut lifted: Vec<Point> = c.iter().collect();
@@ -1026,11 +1032,11 @@ mod tests {
         let t = Rigid::identity();
         let full = v.evidence(&t);
         assert!((full.fitness_source - 0.75).abs() < 1e-9, "{full:?}");
-        let glance = v.glance(&t).unwrap();
-        let se = glance.standard_error();
+        let estimate = v.subsample_evidence(&t).unwrap();
+        let se = estimate.standard_error();
         assert!(
-            (glance.score - full.score).abs() < 3.0 * se,
-            "{glance:?} {full:?}"
+            (estimate.score - full.score).abs() < 3.0 * se,
+            "{estimate:?} {full:?}"
         );
         let stride: Vec<u32> = (0..8100).step_by(4).collect();
         let strided = v.evidence_over(&t, Some([&stride, &stride]));
@@ -1057,7 +1063,7 @@ mod tests {
     }
 
     #[test]
-    fn a_clear_loser_is_rejected_at_a_glance_a_close_one_is_scored_in_full() {
+    fn a_clear_loser_is_rejected_on_a_subsample_a_close_one_is_scored_in_full() {
         let c = plane(90);
         let cfg = VerifyConfig {
             check_iterations: 0,
@@ -1071,17 +1077,26 @@ mod tests {
         let shifted = Rigid::new(Matrix3::identity(), Vector3::new(0.45, 0.0, 0.0));
         let full = v.evidence(&shifted);
         let decide = |best: f64| check(&pair, &v, &shifted, &icp, &cfg, best, &|_| None).unwrap();
-        // A threshold just below its score: the glance cannot settle it; scored in full, kept.
+        // A threshold just below its score: the subsample estimate cannot settle it; scored in full, kept.
         let close = decide(full.score / 0.6 * 0.95);
-        assert!(!close.rejected_early && !close.at_a_glance, "{close:?}");
+        assert!(
+            !close.rejected_early && !close.rejected_on_subsample,
+            "{close:?}"
+        );
         assert_eq!(close.evidence, full);
-        // Against a threshold twice its score: rejected on the glance, which says so.
+        // Against a threshold twice its score: rejected on the subsample, which says so.
         let clear = decide(2.0 * full.score / 0.6);
-        assert!(clear.rejected_early && clear.at_a_glance, "{clear:?}");
+        assert!(
+            clear.rejected_early && clear.rejected_on_subsample,
+            "{clear:?}"
+        );
         assert_eq!(clear.evidence.points, [2025, 2025]);
         // Just above its own score: rejected, on the full evidence.
         let just = decide(full.score / 0.6 * 1.001);
-        assert!(just.rejected_early && !just.at_a_glance, "{just:?}");
+        assert!(
+            just.rejected_early && !just.rejected_on_subsample,
+            "{just:?}"
+        );
         assert_eq!(just.evidence, full);
     }
 
