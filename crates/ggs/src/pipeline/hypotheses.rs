@@ -101,7 +101,7 @@ pub(super) struct VerifyReady {
     /// The first look's screening pair: the thinned pair thinned again to the coarser cells
     /// of this many voxels, built on first use.
     screen_cell: Option<f64>,
-    screen: std::sync::OnceLock<PreparedPair>,
+    screening: std::sync::OnceLock<PreparedPair>,
     icp: RefineConfig,
 }
 
@@ -128,15 +128,15 @@ impl VerifyReady {
             verifier,
             thinned: thinned?,
             screen_cell: screen_cell_voxels.filter(|&c| c > 0.0).map(|c| c * voxel),
-            screen: std::sync::OnceLock::new(),
+            screening: std::sync::OnceLock::new(),
             icp,
         })
     }
 
     /// The first look's screening pair (see [`Self::screen_cell`]), if it screens.
-    fn screen(&self) -> Option<&PreparedPair> {
+    fn screening_pair(&self) -> Option<&PreparedPair> {
         let cell = self.screen_cell?;
-        Some(self.screen.get_or_init(|| {
+        Some(self.screening.get_or_init(|| {
             let pair = self.thinned.coarsened(cell);
             prepare_pair(&pair, &self.icp);
             pair
@@ -400,10 +400,10 @@ impl RankedChecks<'_> {
         out: &mut Vec<VerifiedHypothesis>,
     ) -> Result<()> {
         let ready = self.ready;
-        match ready.screen() {
-            Some(screen) => {
-                let firsts = self.first_stages(inputs, cfg, screen, others, None)?;
-                self.in_order(others, firsts, None, screen, out)
+        match ready.screening_pair() {
+            Some(screening) => {
+                let firsts = self.first_stages(inputs, cfg, screening, others, None)?;
+                self.in_order(others, firsts, None, screening, out)
             }
             None => {
                 let firsts =
