@@ -27,7 +27,7 @@ LAYERS = [
     ["error", "threads", "simd", "rng", "memory", "order", "num"],
     ["transform", "cloud", "spacing", "thin", "mesh", "test_rng"],
     ["io", "rotations"],
-    ["coarse", "refine"],
+    ["search", "refine"],
     ["metrics", "render"],
     ["pipeline"],
     ["settings"],

@@ -165,7 +165,7 @@ class Result:
 
     @property
     def voxel(self) -> Optional[float]:
-        """The voxel size of the coarse search."""
+        """The voxel size of the grid search."""
         return self._fields["voxel"]  # type: ignore[no-any-return]
 
     @property

@@ -1,12 +1,12 @@
 //! Stage benchmarks on the bundled PCL bunny pair (tests/data, ~400 points each):
-//! `cargo bench -p ggs-bench --bench pipeline`. For the large real pairs see docs/coarse-search.md and
+//! `cargo bench -p ggs-bench --bench pipeline`. For the large real pairs see docs/grid-search.md and
 //! docs/refinement.md (whole-process timings with `ggs register --json`).
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use ggs::coarse::{coarse_register, SearchConfig};
 use ggs::io::read_cloud;
 use ggs::refine::{refine, RefineConfig};
 use ggs::rotations::RotationSet;
+use ggs::search::{grid_search, SearchConfig};
 use std::path::PathBuf;
 
 fn data(name: &str) -> ggs::Cloud {
@@ -31,10 +31,10 @@ fn pipeline(c: &mut Criterion) {
             ..SearchConfig::with_voxel(0.006)
         };
         g.bench_function(format!("coarse limited15 6mm, {threads} thread(s)"), |b| {
-            b.iter(|| coarse_register(&source, &target, &set, &cfg).unwrap())
+            b.iter(|| grid_search(&source, &target, &set, &cfg).unwrap())
         });
     }
-    let coarse = coarse_register(&source, &target, &set, &SearchConfig::with_voxel(0.006))
+    let coarse = grid_search(&source, &target, &set, &SearchConfig::with_voxel(0.006))
         .unwrap()
         .transform();
     g.bench_function("gicp from coarse", |b| {

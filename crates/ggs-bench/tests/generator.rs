@@ -217,11 +217,11 @@ fn generated_pairs_register() {
     for p in &pairs {
         let s = ggs::io::read_cloud(&p.source, None).unwrap().cloud;
         let t = ggs::io::read_cloud(&p.target, None).unwrap().cloud;
-        let coarse = ggs::coarse::coarse_register(
+        let coarse = ggs::search::grid_search(
             &s,
             &t,
             &set,
-            &ggs::coarse::SearchConfig::with_voxel(p.voxel),
+            &ggs::search::SearchConfig::with_voxel(p.voxel),
         )
         .unwrap();
         let fine = ggs::refine::refine(

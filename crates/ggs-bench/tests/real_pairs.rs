@@ -1,6 +1,6 @@
-//! Coarse search on every real pair of `shared/data/pairs.tsv` at its suggested voxel.
+//! Grid search on every real pair of `shared/data/pairs.tsv` at its suggested voxel.
 //!
-//! Prints the table of docs/coarse-search.md (regenerate it with
+//! Prints the table of docs/grid-search.md (regenerate it with
 //! `cargo test --release -p ggs-bench --test real_pairs -- --nocapture`) and checks the accuracy
 //! each rotation set must reach: within 10° and 3 voxels of the ground truth where the set
 //! covers the rotation and the overlap is high; 15° / 0.5 m on 3dmatch_demo and 15° / 3
@@ -10,11 +10,11 @@
 #[path = "../../ggs/tests/common/mod.rs"]
 mod common;
 
-use ggs::coarse::{coarse_register, CoarseToFine, SearchConfig, SearchMode};
 use ggs::io::read_cloud;
 use ggs::metrics::{rre, rte};
 use ggs::refine::{refine, RefineConfig};
 use ggs::rotations::RotationSet;
+use ggs::search::{grid_search, CoarseToFine, SearchConfig, SearchMode};
 use ggs::transform::rotation_angle_deg;
 use ggs_bench::manifest::read_manifest;
 use nalgebra::Matrix3;
@@ -57,7 +57,7 @@ fn refined_bound(name: &str, coarse_rre: f64, coarse_rte: f64, voxel: f64) -> Op
 }
 
 #[test]
-fn coarse_search_on_real_pairs() {
+fn grid_search_on_real_pairs() {
     let Some(shared) = common::shared_dir() else {
         return;
     };
@@ -99,7 +99,7 @@ fn coarse_search_on_real_pairs() {
             let source = read_cloud(&pair.source, None).unwrap().cloud;
             let target = read_cloud(&pair.target, None).unwrap().cloud;
             let t0 = Instant::now();
-            let r = coarse_register(
+            let r = grid_search(
                 &source,
                 &target,
                 &set,
@@ -108,7 +108,7 @@ fn coarse_search_on_real_pairs() {
             .unwrap();
             let secs = t0.elapsed().as_secs_f64();
             // The coarse-to-fine search picks what the exhaustive one picks.
-            let fast = coarse_register(
+            let fast = grid_search(
                 &source,
                 &target,
                 &set,

@@ -66,7 +66,7 @@ pub struct PipelineArgs {
     /// correlation) before its ICP.
     #[arg(long)]
     pub polish: bool,
-    /// Refinement after the coarse search: gicp, p2plane, p2p or none.
+    /// Refinement after the grid search: gicp, p2plane, p2p or none.
     #[arg(long)]
     pub refine: Option<String>,
     /// Final refinement on both clouds thinned to one point per cell of this many voxels (0:

@@ -5,7 +5,6 @@ use crate::pipeline_args::{put, RefineOptions};
 use crate::refine_args::{print_report, read_matrix};
 use anyhow::{Context, Result};
 use clap::Args;
-use ggs::coarse;
 use ggs::html::registration::RegistrationReport;
 use ggs::io::{self, ReadOptions};
 use ggs::pipeline::{
@@ -14,6 +13,7 @@ use ggs::pipeline::{
 };
 use ggs::refine;
 use ggs::rotations::RotationSet;
+use ggs::search;
 use ggs::settings::{Changes, Settings};
 use ggs::{Cloud, Rigid};
 use std::path::{Path, PathBuf};
@@ -351,8 +351,8 @@ fn print_search(reg: &Registration, preset: &str) -> Result<()> {
         r.stats.rotations,
         r.stats.rotation_set,
         match r.stats.mode {
-            coarse::SearchMode::Exhaustive => "exhaustive",
-            coarse::SearchMode::CoarseToFine(_) => "coarse-to-fine",
+            search::SearchMode::Exhaustive => "exhaustive",
+            search::SearchMode::CoarseToFine(_) => "coarse-to-fine",
         }
     );
     outln!(
@@ -374,7 +374,7 @@ fn print_search(reg: &Registration, preset: &str) -> Result<()> {
 }
 
 /// The grids of the search, its representatives and its coarse level.
-fn print_grids(r: &coarse::SearchResult) -> Result<()> {
+fn print_grids(r: &search::SearchResult) -> Result<()> {
     let g = &r.stats.geometry;
     outln!(
         "grids       target {}×{}×{} ({} occupied), source ≤ {}×{}×{}, FFT {}×{}×{}",
@@ -394,7 +394,7 @@ fn print_grids(r: &coarse::SearchResult) -> Result<()> {
             "            source searched as {} representatives of its {} points (one per cell of voxel / {})",
             r.stats.searched_points,
             r.stats.source_points,
-            coarse::REPRESENTATIVE_DIVISIONS
+            search::REPRESENTATIVE_DIVISIONS
         );
     }
     if let Some(c) = r.stats.coarse_level.as_ref().filter(|c| c.rounds == 0) {
@@ -510,7 +510,7 @@ fn print_timings(reg: &Registration, read_ms: f64, total_ms: f64) -> Result<()> 
     ] {
         outln!("{name:<32} {:>10} {v:>10.1}  {:>5.1} %", "", pct(v));
     }
-    if r.stats.precision == coarse::Precision::Mixed {
+    if r.stats.precision == search::Precision::Mixed {
         outln!(
             "  of which exact re-scoring ({} rotation(s)) {:>5.1} wall",
             r.stats.rescored,

@@ -1,6 +1,6 @@
 //! Times the three ways of scoring one rotation of a level, the transforms
 //! (`CpuCorrelator::rounded_best` at the smallest plan that holds it), direct correlation
-//! (`coarse::direct`) and sparse correlation (`coarse::sparse`), over every rotation of
+//! (`search::direct`) and sparse correlation (`search::sparse`), over every rotation of
 //! `hopf15-id`, checks that all give the same best offset and score, and counts which one the
 //! cost model (`Workspace::direct_best`) would pick:
 //! `cargo bench -p ggs --features internals --bench direct_probe -- SOURCE TARGET VOXEL [FACTOR]`
@@ -9,13 +9,13 @@
 //! voxel-size level, on representatives as thinned).
 mod common;
 
-use ggs::coarse::cpu::{CpuCorrelator, Workspace};
-use ggs::coarse::direct::{DirectKernel, DirectScratch};
-use ggs::coarse::extents::{geometry_for, rotated_boxes, rows, target_kernel};
-use ggs::coarse::rotated::RotatableCloud;
-use ggs::coarse::sized::SizedPlans;
-use ggs::coarse::sparse::{SparseKernel, SparseScratch};
 use ggs::rotations::RotationSet;
+use ggs::search::cpu::{CpuCorrelator, Workspace};
+use ggs::search::direct::{DirectKernel, DirectScratch};
+use ggs::search::extents::{geometry_for, rotated_boxes, rows, target_kernel};
+use ggs::search::rotated::RotatableCloud;
+use ggs::search::sized::SizedPlans;
+use ggs::search::sparse::{SparseKernel, SparseScratch};
 use ggs::Cloud;
 use std::time::Instant;
 

@@ -6,9 +6,9 @@
 //! coarse level does with 4).
 mod common;
 
-use ggs::coarse::extents::rows;
-use ggs::coarse::rotated::{dot_row, GridView, RotatableCloud};
 use ggs::rotations::RotationSet;
+use ggs::search::extents::rows;
+use ggs::search::rotated::{dot_row, GridView, RotatableCloud};
 use ggs::{Cloud, Point};
 use std::time::Instant;
 

@@ -1,4 +1,4 @@
-//! Stage benchmarks of the coarse search on a real 40k-point pair (tests/data/bun045.ply →
+//! Stage benchmarks of the grid search on a real 40k-point pair (tests/data/bun045.ply →
 //! bun000.ply, Stanford bunny, 5 mm voxel, limited15): `cargo bench -p ggs --features internals --bench stages`.
 //!
 //! Per rotation: voxelize the rotated source, forward FFT (z, y), x stage (FFT, spectrum
@@ -7,13 +7,13 @@
 //! coarse-to-fine). docs/performance.md has the results and the FLOP counts.
 
 use criterion::{criterion_group, criterion_main, BatchSize, Criterion};
-use ggs::coarse::cpu::{CpuCorrelator, Geometry, Real, Workspace};
-use ggs::coarse::rotated::RotatableCloud;
-use ggs::coarse::voxel::{grid_dims, Occupancy};
-use ggs::coarse::{coarse_register, CoarseToFine, SearchConfig, SearchMode};
 use ggs::io::read_cloud;
 use ggs::refine::{refine, RefineConfig};
 use ggs::rotations::RotationSet;
+use ggs::search::cpu::{CpuCorrelator, Geometry, Real, Workspace};
+use ggs::search::rotated::RotatableCloud;
+use ggs::search::voxel::{grid_dims, Occupancy};
+use ggs::search::{grid_search, CoarseToFine, SearchConfig, SearchMode};
 use ggs::Cloud;
 use std::path::PathBuf;
 
@@ -159,11 +159,11 @@ fn stages(c: &mut Criterion) {
             mode,
             ..SearchConfig::with_voxel(VOXEL)
         };
-        g.bench_function(format!("coarse search {name}, 2 threads"), |b| {
-            b.iter(|| coarse_register(&source, &target, &set, &cfg).unwrap())
+        g.bench_function(format!("grid search {name}, 2 threads"), |b| {
+            b.iter(|| grid_search(&source, &target, &set, &cfg).unwrap())
         });
     }
-    let coarse = coarse_register(&source, &target, &set, &SearchConfig::with_voxel(VOXEL))
+    let coarse = grid_search(&source, &target, &set, &SearchConfig::with_voxel(VOXEL))
         .unwrap()
         .transform();
     let refine_cfg = RefineConfig {

@@ -1,8 +1,8 @@
-//! Times the correlator's transforms along z both ways (`ggs::coarse::zaxis`): realfft one
+//! Times the correlator's transforms along z both ways (`ggs::search::zaxis`): realfft one
 //! call per row against the batched transform (one complex FFT call over 40 rows), f32, rows
 //! in cache, ns per row:
 //! `cargo bench -p ggs --features internals --bench z_transforms`.
-use ggs::coarse::zaxis::ZAxis;
+use ggs::search::zaxis::ZAxis;
 use rustfft::num_complex::Complex;
 use std::time::Instant;
 

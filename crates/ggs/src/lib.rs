@@ -6,11 +6,10 @@
 //! initial guess. On top of it, ggs verifies the distinct hypotheses by ICP on thinned clouds
 //! and a fixed-distance score, and refines the best by generalized ICP.
 //!
-//! The pipeline, one module per stage:
-//! [`io`] → [`cloud`] → [`rotations`] → [`coarse`] (voxelization, FFT correlation, the
-//! search) → [`pipeline`] (verification of the hypotheses) → [`refine`], configured by one
-//! flat [`Settings`] ([`settings`]: the presets, settings files, every key) and run by
-//! [`register`], which every front end calls; [`metrics`] for evaluation.
+//! The pipeline, one module per stage: [`io`] → [`cloud`] → [`rotations`] → [`search`]
+//! (voxelization, FFT correlation, the grid search) → [`pipeline`] (verification of the hypotheses)
+//! → [`refine`], configured by one flat [`Settings`] ([`settings`]: the presets, settings files,
+//! every key) and run by [`register`], which every front end calls; [`metrics`] for evaluation.
 //!
 //! ```no_run
 //! use ggs::{io, register, Settings};
@@ -42,7 +41,6 @@ macro_rules! internal_modules {
 
 pub mod align;
 pub mod cloud;
-pub mod coarse;
 pub mod error;
 #[cfg(feature = "report")]
 pub mod html;
@@ -57,6 +55,7 @@ pub mod refine;
 pub mod render;
 pub mod rng;
 pub mod rotations;
+pub mod search;
 pub mod settings;
 pub mod simd;
 pub mod spacing;

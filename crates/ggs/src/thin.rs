@@ -1,6 +1,6 @@
 //! Thinning: one point per occupied cell of a grid, the mean of the points in it.
 //!
-//! Used by the coarse search (representatives of dense sources, the coarse level's source)
+//! Used by the grid search (representatives of dense sources, the coarse level's source)
 //! and by the refinement (ICP on thinned clouds), so it sits at the cloud layer, below both.
 
 use crate::cloud::{Point, PointAccess};

@@ -200,7 +200,7 @@ fn stage_times_html(rows: &[PairRow]) -> String {
     };
     let stages: [(&str, StageTime); 5] = [
         ("read", |r| r.read_ms),
-        ("coarse search", |r| r.coarse_ms),
+        ("grid search", |r| r.coarse_ms),
         ("verification", |r| r.verify_ms),
         ("final refinement", |r| r.refine_ms),
         ("total", |r| r.total_ms),

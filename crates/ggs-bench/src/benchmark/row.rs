@@ -28,7 +28,7 @@ pub struct PairRow {
     pub success: bool,
     pub max_rre_deg: f64,
     pub max_rte: f64,
-    /// Errors of the coarse search alone.
+    /// Errors of the grid search alone.
     pub coarse_rre: f64,
     pub coarse_rte: f64,
     /// Score `Σ S_pad·K` of the coarse pick and the ambiguity ratio.

@@ -71,7 +71,7 @@ pub const LEAST_SCORE_PER_OVERLAP: f64 = 0.5;
 /// with a verification that drops, at their checks, the poses too weak to place a scan
 /// ([`LEAST_SCORE_PER_OVERLAP`] × `align_min_overlap`), and with a coarse-to-fine search that
 /// stops widening once a doubling of its kept rotations leaves the winner unchanged
-/// ([`CoarseToFine::stop_when_winner_holds`](crate::coarse::CoarseToFine)): a scan that fits
+/// ([`CoarseToFine::stop_when_winner_holds`](crate::search::CoarseToFine)): a scan that fits
 /// nowhere (another object's) would otherwise have every rotation scored at the voxel size.
 pub fn placement_plan(settings: &Settings, runtime: &Runtime) -> Result<RegistrationConfig> {
     let mut cfg = settings.plan_with(runtime)?;
@@ -79,7 +79,7 @@ pub fn placement_plan(settings: &Settings, runtime: &Runtime) -> Result<Registra
         v.least_score = LEAST_SCORE_PER_OVERLAP * settings.align_min_overlap;
         cfg.refine = None;
     }
-    if let crate::coarse::SearchMode::CoarseToFine(c) = &mut cfg.search.mode {
+    if let crate::search::SearchMode::CoarseToFine(c) = &mut cfg.search.mode {
         c.stop_when_winner_holds = true;
     }
     Ok(cfg)

@@ -168,7 +168,7 @@ fn angle(a: &Rigid, b: &Rigid) -> f64 {
     rotation_angle_deg(&a.rotation, &b.rotation)
 }
 
-/// The hypotheses: verified ones with their evidence, else the coarse search's list.
+/// The hypotheses: verified ones with their evidence, else the grid search's list.
 fn hypotheses_html(reg: &Registration) -> String {
     let mut s = String::from("<h2>Hypotheses</h2>");
     s += &first_look_html(reg);
@@ -362,8 +362,8 @@ fn search_html(reg: &Registration) -> String {
             r.stats.rotations,
             escape(&r.stats.rotation_set),
             match r.stats.mode {
-                crate::coarse::SearchMode::Exhaustive => "exhaustive",
-                crate::coarse::SearchMode::CoarseToFine(_) => "coarse-to-fine",
+                crate::search::SearchMode::Exhaustive => "exhaustive",
+                crate::search::SearchMode::CoarseToFine(_) => "coarse-to-fine",
             }
         ),
     );

@@ -6,10 +6,10 @@ use super::first_look::FirstLook;
 use super::polish::PolishConfig;
 use super::verify::VerifyConfig;
 use crate::cloud::Cloud;
-use crate::coarse::{auto_voxel, round_2_digits, SearchConfig};
 use crate::error::{GgsError, Result};
 use crate::refine::RefineConfig;
 use crate::rotations::RotationSet;
+use crate::search::{auto_voxel, round_2_digits, SearchConfig};
 
 /// Voxels along the target's longest side when the voxel size is chosen automatically.
 pub const AUTO_VOXEL_CELLS: usize = 32;
@@ -168,7 +168,7 @@ impl FinalStage {
 pub struct RegistrationConfig {
     pub voxel: VoxelSize,
     pub rotations: RotationSet,
-    /// The coarse search. Its `voxel` and `threads` are set from this config's. Its `top_k`
+    /// The grid search. Its `voxel` and `threads` are set from this config's. Its `top_k`
     /// hypotheses are reported in the result; the search looks for at least
     /// [`VerifyConfig::max_hypotheses`] when verifying.
     pub search: SearchConfig,

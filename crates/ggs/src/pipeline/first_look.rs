@@ -9,7 +9,7 @@
 //! converges under ICP and explains both clouds far better than any other pose.
 //!
 //! The alternatives it is weighed against are the coarse level's best distinct poses
-//! ([`CoarseToFine::hypotheses`](crate::coarse::CoarseToFine::hypotheses), 8 by default):
+//! ([`CoarseToFine::hypotheses`](crate::search::CoarseToFine::hypotheses), 8 by default):
 //! the best poses over the whole rotation set at the coarser voxel, each verified as the
 //! whole verification would (they are among its candidates too).
 //!

@@ -10,9 +10,9 @@ use super::verified::{
 };
 use super::verify::{self, VerifyConfig};
 use crate::cloud::{Cloud, Point};
-use crate::coarse::{Hypothesis, SearchConfig, SearchResult};
 use crate::error::{GgsError, Result};
 use crate::refine::{refine_prepared_pose, PreparedPair, RefineConfig};
+use crate::search::{Hypothesis, SearchConfig, SearchResult};
 use crate::transform::{rotation_angle_deg, Rigid};
 use rayon::prelude::*;
 

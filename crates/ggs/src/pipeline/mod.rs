@@ -1,5 +1,5 @@
 //! The registration pipeline that every front end calls (`ggs register`, `ggs bench`, Python):
-//! voxel size → coarse search → verification of the distinct hypotheses → refinement of the
+//! voxel size → grid search → verification of the distinct hypotheses → refinement of the
 //! chosen one.
 //!
 //! ```text
@@ -7,7 +7,7 @@
 //!                ──► coarse level: every rotation at a coarser voxel (search)
 //!                ──► first look (first_look): its best few at the voxel size, verified;
 //!                    one pose clearly right → to the refinement
-//!                ──► the rest of the coarse search (search)           → K distinct hypotheses
+//!                ──► the rest of the grid search (search)           → K distinct hypotheses
 //!                ──► for each kept hypothesis: [polish (polish)]
 //!                                              ICP on thinned clouds and a verification score
 //!                                              (verify, hypotheses)
@@ -41,9 +41,9 @@ mod verified;
 pub mod verify;
 
 use crate::cloud::Cloud;
-use crate::coarse::{CpuBackend, PreparedSearch, Search, SearchConfig, SearchMode, SearchResult};
 use crate::error::Result;
 use crate::refine::{refine_prepared, PreparedPair, QualityReport, RefineConfig, RefineResult};
+use crate::search::{CpuBackend, PreparedSearch, Search, SearchConfig, SearchMode, SearchResult};
 use crate::transform::{rotation_angle_deg, Rigid};
 pub use config::{
     FinalStage, Preset, RegistrationConfig, VoxelSize, AUTO_VOXEL_CELLS, AUTO_VOXEL_SPACINGS,
@@ -83,7 +83,7 @@ pub fn register(source: &Cloud, target: &Cloud, cfg: &RegistrationConfig) -> Res
     pool.install(|| register_in_pool(source, target, cfg))
 }
 
-/// The coarse search's configuration: the pipeline's, at the resolved voxel and thread
+/// The grid search's configuration: the pipeline's, at the resolved voxel and thread
 /// count, keeping as many hypotheses as the verification checks.
 fn search_config(cfg: &RegistrationConfig, voxel: f64) -> SearchConfig {
     let mut search = cfg.search.clone();

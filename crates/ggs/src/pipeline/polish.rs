@@ -4,7 +4,7 @@
 //! 15° sets), and from starts 10–15° off ICP can settle in a wrong local minimum. Around a
 //! hypothesis `R` the polish scores the 7 rotations `R` and `exp(±h·e_d)·R` (`exp` of a
 //! rotation vector in radians, `e_d` the axes; the centre first) at the voxel size with the
-//! exact score of the coarse search, and moves to the best; it repeats while the best is not
+//! exact score of the grid search, and moves to the best; it repeats while the best is not
 //! the centre (at most `max_moves` times), then divides `h` by 3, for `levels` levels starting
 //! at `h = step_fraction · S`. Ties keep the centre (the lowest index wins), so the polish never
 //! lowers the match score and stops where no neighbour is strictly better. (The 27-rotation
@@ -12,9 +12,9 @@
 //! times the cost.)
 
 use crate::cloud::Cloud;
-use crate::coarse::{coarse_register, Hypothesis, SearchConfig, SearchMode};
 use crate::error::Result;
 use crate::rotations::RotationSet;
+use crate::search::{grid_search, Hypothesis, SearchConfig, SearchMode};
 use nalgebra::{Matrix3, Rotation3, Vector3};
 
 /// Parameters of the polish.
@@ -84,7 +84,7 @@ pub fn polish(
                 matrices: local_grid(&best.transform.rotation, h),
                 step_deg: h.to_degrees(),
             };
-            let r = coarse_register(source, target, &set, &local_cfg)?;
+            let r = grid_search(source, target, &set, &local_cfg)?;
             scored += set.len();
             if r.winner().rotation_index == 0 || r.winner().match_score <= best.match_score {
                 break;

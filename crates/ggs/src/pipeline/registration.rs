@@ -2,8 +2,8 @@
 
 use super::first_look::FirstLookReport;
 use super::verified::Verification;
-use crate::coarse::SearchResult;
 use crate::refine::RefineResult;
+use crate::search::SearchResult;
 use crate::transform::Rigid;
 
 /// Wall times of the stages, milliseconds.
@@ -27,7 +27,7 @@ pub struct Registration {
     pub voxel: f64,
     /// How the voxel was chosen automatically (`None`: it was given).
     pub voxel_rule: Option<String>,
-    /// Rank of the chosen hypothesis among the coarse search's (0: its winner).
+    /// Rank of the chosen hypothesis among the grid search's (0: its winner).
     pub chosen_rank: usize,
     /// `1 − runner-up / chosen` verification score (or `1 −` the coarse ambiguity), in [0, 1].
     pub confidence: f64,

@@ -44,7 +44,7 @@ pub struct VerifiedHypothesis {
     pub screened: bool,
 }
 
-/// The level of the coarse search a hypothesis comes from.
+/// The level of the grid search a hypothesis comes from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum HypothesisLevel {

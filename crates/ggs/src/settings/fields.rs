@@ -1,12 +1,12 @@
 //! The settings struct, its fields with their meaning and units, and the presets' values.
 
-use crate::coarse::{CoarseToFine, Precision, ProgressFn, COARSE_LEVEL_HYPOTHESES};
 use crate::pipeline::{
     FinalStage, FirstLook, PolishConfig, Preset, VerifyConfig, VerifyScore, AUTO_VOXEL_CELLS,
     AUTO_VOXEL_SPACINGS,
 };
 use crate::refine::{Method, RefineConfig, RobustKernel, DEFAULT_DISTANCE_QUANTILE};
 use crate::rotations::DEFAULT_SET;
+use crate::search::{CoarseToFine, Precision, ProgressFn, COARSE_LEVEL_HYPOTHESES};
 use serde::{Deserialize, Serialize};
 use std::sync::atomic::AtomicBool;
 use std::sync::Arc;

@@ -3,7 +3,6 @@
 
 use super::fields::{Runtime, SearchKind, Settings};
 use crate::cloud::Cloud;
-use crate::coarse::{CoarseToFine, SearchConfig, SearchMode};
 use crate::error::{GgsError, Result};
 use crate::pipeline::{
     self, FinalStage, FirstLook, PolishConfig, Preset, Registration, RegistrationConfig,
@@ -11,6 +10,7 @@ use crate::pipeline::{
 };
 use crate::refine::{CorrespondenceDistance, RefineConfig};
 use crate::rotations::{RotationSet, NAMES};
+use crate::search::{CoarseToFine, SearchConfig, SearchMode};
 
 /// `Err` naming `key` unless `ok`.
 fn check(ok: bool, key: &'static str, rule: &str, got: impl std::fmt::Display) -> Result<()> {

@@ -2,7 +2,7 @@
 //! every rotation at the coarse level (coarse-to-fine); [`Search::score_leading`] scores only
 //! the coarse level's leading few at the voxel size and picks their distinct hypotheses;
 //! [`Search::complete`] scores what the whole search scores and returns what
-//! [`coarse_register_with`](super::coarse_register_with) returns, bit for bit: a rotation's
+//! [`grid_search_with`](super::grid_search_with) returns, bit for bit: a rotation's
 //! score depends on nothing but the rotation, so the ones scored first keep theirs,
 //! and the picks are the exact best among the scored rotations whichever were re-scored
 //! exactly on the way ([`super::selection::exact_best`]).
@@ -210,10 +210,10 @@ impl Search<'_, '_> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::coarse::config::CoarseToFine;
-    use crate::coarse::passes::CpuBackend;
-    use crate::coarse::source::tests::plane;
-    use crate::coarse::{coarse_register, SearchConfig};
+    use crate::search::config::CoarseToFine;
+    use crate::search::passes::CpuBackend;
+    use crate::search::source::tests::plane;
+    use crate::search::{grid_search, SearchConfig};
     use crate::transform::Rigid;
     use nalgebra::Vector3;
 
@@ -236,7 +236,7 @@ mod tests {
         let set = RotationSet::named("limited15").unwrap();
         let (source, target) = pair(&set);
         let cfg = coarse_to_fine();
-        let whole = coarse_register(&source, &target, &set, &cfg).unwrap();
+        let whole = grid_search(&source, &target, &set, &cfg).unwrap();
         let prepared = PreparedSearch::new(&source, &target, &set, &cfg).unwrap();
         let mut search = prepared.start(&CpuBackend).unwrap();
         let first = search.score_leading(4).unwrap();

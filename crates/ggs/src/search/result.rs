@@ -1,4 +1,4 @@
-//! What a coarse search returns: the hypotheses, the statistics of the search, the timings.
+//! What a grid search returns: the hypotheses, the statistics of the search, the timings.
 
 use super::config::{Precision, SearchMode};
 use super::geometry::Geometry;
@@ -30,7 +30,7 @@ pub struct Timings {
     pub extents_ms: f64,
     /// Scoring the rotations at the voxel size and selecting the winner (wall).
     pub search_ms: f64,
-    /// Everything in `coarse_register` (wall).
+    /// Everything in `grid_search` (wall).
     pub total_ms: f64,
     /// CPU time summed over workers and over both levels: voxelizing rotated sources.
     pub cpu_voxelize_ms: f64,
@@ -41,7 +41,7 @@ pub struct Timings {
     /// CPU time: inverse FFTs along y and z and the argmax.
     pub cpu_inverse_ms: f64,
     /// CPU time: direct correlation of small grids and sparse correlation of sparse ones,
-    /// where either is cheaper than the transforms (`coarse::direct`, `coarse::sparse`).
+    /// where either is cheaper than the transforms (`search::direct`, `search::sparse`).
     pub cpu_direct_ms: f64,
     /// Coarse level of a coarse-to-fine search: thinning, its kernel and extents, scoring
     /// every rotation, ranking (wall; not included in the other fields).
@@ -51,7 +51,7 @@ pub struct Timings {
     pub rescore_ms: f64,
 }
 
-/// Result of a coarse search: the hypotheses, what the search did, how long it took.
+/// Result of a grid search: the hypotheses, what the search did, how long it took.
 #[derive(Debug, Clone)]
 pub struct SearchResult {
     /// The `top_k` best distinct hypotheses, best first: `hypotheses[0]` is the winner
@@ -67,7 +67,7 @@ pub struct SearchResult {
     pub timings: Timings,
 }
 
-/// What a coarse search did: its parameters as resolved, the sizes of its problem, its work.
+/// What a grid search did: its parameters as resolved, the sizes of its problem, its work.
 #[derive(Debug, Clone, serde::Serialize)]
 pub struct SearchStats {
     /// Rotations closer than this (degrees) to a better hypothesis were not distinct.

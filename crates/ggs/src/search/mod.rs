@@ -1,7 +1,7 @@
-//! The coarse search of Greedy Grid Search (docs/method.md): every rotation of a set, the
+//! The grid search of Greedy Grid Search (docs/method.md): every rotation of a set, the
 //! best translation of each by FFT correlation, the best (rotation, translation) overall.
 //!
-//! The stages, in the order one search runs them ([`coarse_register`]); the modules behind
+//! The stages, in the order one search runs them ([`grid_search`]); the modules behind
 //! them are crate-private (public with the `internals` feature, for the benchmarks):
 //!
 //! 1. `source`: the source's representatives (dense clouds, [`representatives`]) and
@@ -65,7 +65,7 @@ pub use config::{
 pub use correlator::{Backend, Correlator, Scores};
 pub use geometry::Geometry;
 pub use passes::CpuBackend;
-pub use register::{coarse_register, coarse_register_with};
+pub use register::{grid_search, grid_search_with};
 pub use result::{CoarseLevel, Hypothesis, LevelHypothesis, SearchResult, SearchStats, Timings};
 pub use source::{representatives, MIN_POINTS_PER_REPRESENTATIVE, REPRESENTATIVE_DIVISIONS};
 pub use staged::{PreparedSearch, Search};

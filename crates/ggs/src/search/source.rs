@@ -36,7 +36,7 @@ pub(super) mod tests {
     use crate::refine::neighbors::PointIndex;
 
     /// A plane of `n` × `n` points `h` apart, slightly wavy.
-    pub(in crate::coarse) fn plane(n: usize, h: f64) -> Cloud {
+    pub(in crate::search) fn plane(n: usize, h: f64) -> Cloud {
         Cloud::new(
             (0..n * n)
                 .map(|i| {

@@ -139,7 +139,7 @@ pub fn exact_best(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::coarse::correlator::{ApproxBest, BestOffset};
+    use crate::search::correlator::{ApproxBest, BestOffset};
 
     fn exact(m: i64) -> Option<BestOffset> {
         Some(BestOffset {

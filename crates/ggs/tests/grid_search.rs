@@ -1,15 +1,13 @@
-//! Invariants of the coarse search: exact recovery of a grid rotation with a voxel-multiple
+//! Invariants of the grid search: exact recovery of a grid rotation with a voxel-multiple
 //! translation, and bit-identical results whatever the thread count.
 
 mod common;
 
 use common::Lcg;
-use ggs::coarse::{
-    coarse_register, CoarseToFine, Precision, SearchConfig, SearchMode, SearchResult,
-};
 use ggs::io::read_cloud;
 use ggs::metrics::{rre, rte};
 use ggs::rotations::RotationSet;
+use ggs::search::{grid_search, CoarseToFine, Precision, SearchConfig, SearchMode, SearchResult};
 use ggs::{Cloud, Rigid};
 use nalgebra::Vector3;
 use proptest::prelude::*;
@@ -82,7 +80,7 @@ fn check_recovery_in(
         precision,
         ..SearchConfig::with_voxel(voxel)
     };
-    let r = coarse_register(&source, &target, set, &cfg).unwrap();
+    let r = grid_search(&source, &target, set, &cfg).unwrap();
     let extent = source.aabb().unwrap().diagonal();
     // A later duplicate of an earlier rotation (limited15 keeps 3 float-noise ones, hopf15
     // some 1.7e-6° apart, where the angle from the trace is at the resolution of acos) is
@@ -181,7 +179,7 @@ fn bit_identical_for_1_2_and_8_threads() {
                 top_k: 5,
                 ..SearchConfig::with_voxel(0.006)
             };
-            coarse_register(&source, &target, set, &cfg).unwrap()
+            grid_search(&source, &target, set, &cfg).unwrap()
         };
         let one = run(1);
         assert_eq!(one.hypotheses.len(), 5);
@@ -209,7 +207,7 @@ fn a_least_match_fraction_cuts_the_list_and_nothing_else() {
             min_match_fraction: fraction,
             ..SearchConfig::with_voxel(0.006)
         };
-        coarse_register(&source, &target, limited15(), &cfg).unwrap()
+        grid_search(&source, &target, limited15(), &cfg).unwrap()
     };
     let all = run(None);
     assert_eq!(all.hypotheses.len(), 12);
@@ -245,7 +243,7 @@ fn top_k_hypotheses_are_distinct_and_ordered() {
         top_k: 6,
         ..SearchConfig::with_voxel(0.08)
     };
-    let r = coarse_register(&source, &target, limited15(), &cfg).unwrap();
+    let r = grid_search(&source, &target, limited15(), &cfg).unwrap();
     assert_eq!(r.hypotheses.len(), 6);
     assert_eq!(r.hypotheses[0].rotation_index, r.winner().rotation_index);
     for w in r.hypotheses.windows(2) {
@@ -269,7 +267,7 @@ fn memory_guard_stops_before_allocating() {
         max_memory: Some(1 << 20),
         ..SearchConfig::with_voxel(0.002)
     };
-    let e = coarse_register(&source, &source, limited15(), &cfg)
+    let e = grid_search(&source, &source, limited15(), &cfg)
         .unwrap_err()
         .to_string();
     assert!(
@@ -290,7 +288,7 @@ fn memory_guard_stops_before_allocating() {
         max_memory: Some(1 << 20),
         ..SearchConfig::with_voxel(suggested)
     };
-    coarse_register(&source, &source, limited15(), &cfg).unwrap();
+    grid_search(&source, &source, limited15(), &cfg).unwrap();
 }
 
 #[test]
@@ -301,7 +299,7 @@ fn memory_guard_stops_the_coarse_to_fine_search_too() {
         mode: SearchMode::CoarseToFine(CoarseToFine::default()),
         ..SearchConfig::with_voxel(0.002)
     };
-    let e = coarse_register(&source, &source, limited15(), &cfg)
+    let e = grid_search(&source, &source, limited15(), &cfg)
         .unwrap_err()
         .to_string();
     assert!(
@@ -314,14 +312,14 @@ fn memory_guard_stops_the_coarse_to_fine_search_too() {
 fn bad_parameters_are_errors() {
     let c = random_cloud(1, 10);
     for v in [0.0, -1.0, f64::NAN, f64::INFINITY] {
-        assert!(coarse_register(&c, &c, limited15(), &SearchConfig::with_voxel(v)).is_err());
+        assert!(grid_search(&c, &c, limited15(), &SearchConfig::with_voxel(v)).is_err());
     }
     let cfg = SearchConfig {
         top_k: 0,
         ..SearchConfig::with_voxel(0.1)
     };
-    assert!(coarse_register(&c, &c, limited15(), &cfg).is_err());
-    let e = coarse_register(
+    assert!(grid_search(&c, &c, limited15(), &cfg).is_err());
+    let e = grid_search(
         &Cloud::default(),
         &c,
         limited15(),
@@ -341,7 +339,7 @@ fn cancellation_stops_the_search() {
         ..SearchConfig::with_voxel(0.1)
     };
     assert!(matches!(
-        coarse_register(&c, &c, limited15(), &cfg),
+        grid_search(&c, &c, limited15(), &cfg),
         Err(ggs::GgsError::Cancelled)
     ));
 }
@@ -356,8 +354,8 @@ fn georeferenced_coordinates_give_the_same_answer() {
         Vector3::new(5.0e5, 4.2e6, 120.0),
     );
     let cfg = SearchConfig::with_voxel(0.006);
-    let a = coarse_register(&source, &target, limited15(), &cfg).unwrap();
-    let b = coarse_register(
+    let a = grid_search(&source, &target, limited15(), &cfg).unwrap();
+    let b = grid_search(
         &source.transformed(&far),
         &target.transformed(&far),
         limited15(),
@@ -419,7 +417,7 @@ proptest! {
     fn mixed_precision_picks_equal_f64(seed in 1u64..u64::MAX) {
         let (source, target) = partial_pair(seed);
         let run = |p| {
-            coarse_register(&source, &target, limited15(),
+            grid_search(&source, &target, limited15(),
                 &with_mode(0.07, SearchMode::Exhaustive, p, 4)).unwrap()
         };
         let mixed = run(Precision::Mixed);
@@ -436,7 +434,7 @@ fn mixed_precision_equals_f64_on_the_bundled_bunny() {
     let source = read_cloud(&dir.join("bun0.pcd"), None).unwrap().cloud;
     let target = read_cloud(&dir.join("bun4.pcd"), None).unwrap().cloud;
     let run = |p| {
-        coarse_register(
+        grid_search(
             &source,
             &target,
             limited15(),
@@ -454,14 +452,14 @@ fn coarse_to_fine_finds_the_exhaustive_answer() {
     let target = read_cloud(&dir.join("bun4.pcd"), None).unwrap().cloud;
     let c2f = SearchMode::CoarseToFine(CoarseToFine::default());
     for set in [limited15(), ico()] {
-        let full = coarse_register(
+        let full = grid_search(
             &source,
             &target,
             set,
             &with_mode(0.006, SearchMode::Exhaustive, Precision::Mixed, 1),
         )
         .unwrap();
-        let fast = coarse_register(
+        let fast = grid_search(
             &source,
             &target,
             set,
@@ -499,12 +497,12 @@ fn stopping_when_the_winner_holds_ends_the_widening_of_a_flat_ranking() {
             ..CoarseToFine::default()
         };
         let cfg = with_mode(0.01, SearchMode::CoarseToFine(c2f), Precision::Mixed, 1);
-        coarse_register(&source, &target, limited15(), &cfg)
+        grid_search(&source, &target, limited15(), &cfg)
             .unwrap()
             .stats
     };
     let (plain, held) = (run(false), run(true));
-    let rounds = |s: &ggs::coarse::SearchStats| s.coarse_level.as_ref().unwrap().rounds;
+    let rounds = |s: &ggs::search::SearchStats| s.coarse_level.as_ref().unwrap().rounds;
     assert!(rounds(&plain) >= 3, "plain: {} rounds", rounds(&plain));
     assert!(rounds(&held) < rounds(&plain), "{} rounds", rounds(&held));
     assert!(
@@ -522,7 +520,7 @@ fn coarse_to_fine_recovers_grid_rotations() {
         let source = random_cloud(seed, 300);
         let truth = Rigid::new(limited15().matrices[k], Vector3::new(0.16, -0.08, 0.24));
         let target = source.transformed(&truth);
-        let r = coarse_register(
+        let r = grid_search(
             &source,
             &target,
             limited15(),
@@ -551,7 +549,7 @@ fn the_coarse_level_reports_distinct_hypotheses_that_place_the_source() {
             ..CoarseToFine::default()
         };
         let cfg = with_mode(0.05, SearchMode::CoarseToFine(c2f), Precision::Mixed, 1);
-        let r = coarse_register(&source, &target, set, &cfg).unwrap();
+        let r = grid_search(&source, &target, set, &cfg).unwrap();
         let level = r.stats.coarse_level.unwrap();
         assert_eq!(level.hypotheses.len(), 5, "seed {seed}");
         let first = &level.hypotheses[0];
@@ -574,7 +572,7 @@ fn the_coarse_level_reports_distinct_hypotheses_that_place_the_source() {
         }
         // Off unless asked for.
         let plain = SearchMode::CoarseToFine(CoarseToFine::default());
-        let r = coarse_register(
+        let r = grid_search(
             &source,
             &target,
             set,
@@ -602,7 +600,7 @@ fn coarse_to_fine_parameters_are_checked() {
         },
     ] {
         let cfg = with_mode(0.1, SearchMode::CoarseToFine(bad), Precision::Mixed, 1);
-        assert!(coarse_register(&c, &c, limited15(), &cfg).is_err());
+        assert!(grid_search(&c, &c, limited15(), &cfg).is_err());
     }
 }
 
@@ -611,10 +609,10 @@ fn coarse_to_fine_parameters_are_checked() {
 /// search runs on the trait's default `approx` (exact scores as intervals of width 0). It
 /// counts the rotations it is asked to score.
 mod second_backend {
-    use ggs::coarse::correlator::{
+    use ggs::search::correlator::{
         Backend, BestOffset, Correlator, PassControl, PassTimes, RotatedSources, Scores,
     };
-    use ggs::coarse::{CpuBackend, Geometry, Occupancy};
+    use ggs::search::{CpuBackend, Geometry, Occupancy};
     use std::sync::atomic::{AtomicUsize, Ordering};
     use std::sync::Arc;
 
@@ -678,11 +676,10 @@ fn a_second_backend_gives_the_cpu_backends_picks_in_both_modes() {
             mode,
             ..SearchConfig::with_voxel(0.006)
         };
-        let cpu = coarse_register(&source, &target, limited15(), &cfg).unwrap();
+        let cpu = grid_search(&source, &target, limited15(), &cfg).unwrap();
         let backend = second_backend::ExactOnly::default();
         let other =
-            ggs::coarse::coarse_register_with(&backend, &source, &target, limited15(), &cfg)
-                .unwrap();
+            ggs::search::grid_search_with(&backend, &source, &target, limited15(), &cfg).unwrap();
         assert_identical(&cpu, &other);
         // It did the work: every rotation scored at the voxel, and the coarse level's too.
         let asked = backend.scored.load(std::sync::atomic::Ordering::Relaxed);

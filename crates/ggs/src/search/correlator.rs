@@ -1,7 +1,7 @@
 //! The seam between the search and the hardware: a [`Backend`] plans a [`Correlator`] for
 //! one target kernel and FFT geometry, and the correlator scores batches of rotated sources.
 //!
-//! The search (`coarse_register_with`) only talks to these two traits: which rotations to
+//! The search (`grid_search_with`) only talks to these two traits: which rotations to
 //! score, at which voxel, exactly or approximately. A GPU backend implements them without
 //! touching the search; the CPU backend is [`CpuBackend`](super::passes::CpuBackend) (`passes.rs`).
 //!

@@ -1,5 +1,5 @@
 //! Out-of-place matrix transposes in square tiles: the layout changes between the
-//! correlator's transforms along z, y and x (`coarse::cpu`), where each axis must be
+//! correlator's transforms along z, y and x (`search::cpu`), where each axis must be
 //! contiguous for its FFT. Values are copied, never combined, so results do not depend on
 //! the tiling.
 

@@ -1,4 +1,4 @@
-//! What a coarse search is asked to do: voxel, threads, hypotheses, mode, precision.
+//! What a grid search is asked to do: voxel, threads, hypotheses, mode, precision.
 
 use crate::cloud::Cloud;
 use crate::error::{GgsError, Result};
@@ -8,7 +8,7 @@ use std::sync::Arc;
 /// Callback told how many rotations have been scored so far.
 pub type ProgressFn = Arc<dyn Fn(usize) + Send + Sync>;
 
-/// Parameters of a coarse search.
+/// Parameters of a grid search.
 #[derive(Clone)]
 pub struct SearchConfig {
     /// Voxel edge length `s`, in the clouds' units.

@@ -409,7 +409,7 @@ pub(crate) mod tests {
 
     /// The first best offset of `m(a)` computed straight from its definition.
     pub(crate) fn brute_best(src: &Occupancy, kernel: &Occupancy) -> BestOffset {
-        let scores = crate::coarse::cpu::brute_force_scores(src, kernel);
+        let scores = crate::search::cpu::brute_force_scores(src, kernel);
         let best = scores.iter().copied().max().expect("at least one offset");
         let at = scores.iter().position(|&m| m == best).expect("the maximum");
         let [_, ny, nz] = src.dims;

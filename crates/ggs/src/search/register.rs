@@ -1,4 +1,4 @@
-//! One coarse search, step by step: check the request, prepare both clouds, rank at the
+//! One grid search, step by step: check the request, prepare both clouds, rank at the
 //! coarse level (coarse-to-fine), score at the voxel in rounds, select the distinct
 //! hypotheses, and turn each argmax into a transform (docs/method.md, "From an argmax to a
 //! transform").
@@ -12,20 +12,20 @@ use crate::cloud::Cloud;
 use crate::error::Result;
 use crate::rotations::RotationSet;
 
-/// Run the coarse search of `source` against `target` over `set` on the CPU.
-pub fn coarse_register(
+/// Run the grid search of `source` against `target` over `set` on the CPU.
+pub fn grid_search(
     source: &Cloud,
     target: &Cloud,
     set: &RotationSet,
     cfg: &SearchConfig,
 ) -> Result<SearchResult> {
-    coarse_register_with(&CpuBackend, source, target, set, cfg)
+    grid_search_with(&CpuBackend, source, target, set, cfg)
 }
 
-/// Run the coarse search on the correlators of `backend`. The picks depend on the backend
+/// Run the grid search on the correlators of `backend`. The picks depend on the backend
 /// only through its scores, which the [`Correlator`](super::Correlator) contract fixes: every backend that
 /// keeps it returns the same result.
-pub fn coarse_register_with(
+pub fn grid_search_with(
     backend: &dyn Backend,
     source: &Cloud,
     target: &Cloud,
@@ -40,7 +40,7 @@ pub fn coarse_register_with(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::coarse::source::tests::plane;
+    use crate::search::source::tests::plane;
     use crate::transform::Rigid;
     use nalgebra::Vector3;
 
@@ -52,7 +52,7 @@ mod tests {
         let truth = Rigid::new(set.matrices[k], Vector3::new(0.3, -0.2, 0.1));
         let target = source.transformed(&truth);
         let cfg = SearchConfig::with_voxel(0.15);
-        let r = coarse_register(&source, &target, &set, &cfg).unwrap();
+        let r = grid_search(&source, &target, &set, &cfg).unwrap();
         assert!(
             r.stats.searched_points * 4 <= r.stats.source_points,
             "{}",

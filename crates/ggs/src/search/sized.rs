@@ -175,7 +175,7 @@ fn smallest_holding(plans: &[&CpuCorrelator<f32>], need: [usize; 3]) -> usize {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::coarse::cpu::brute_force_scores;
+    use crate::search::cpu::brute_force_scores;
 
     fn occupancy(dims: [usize; 3], seed: u64) -> Occupancy {
         let mut next = crate::test_rng::uniform(seed);

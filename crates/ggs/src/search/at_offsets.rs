@@ -114,7 +114,7 @@ impl<T: Real> CpuCorrelator<T> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::coarse::cpu::{brute_force_scores, Geometry, KernelWindow};
+    use crate::search::cpu::{brute_force_scores, Geometry, KernelWindow};
 
     /// Against every floor, `exact_above` gives the exact best (value and first offset) when
     /// it reaches the floor, and otherwise a true upper bound below the floor; with either

@@ -253,7 +253,7 @@ impl RotatableCloud {
     /// `min` must be the per-axis minimum of `R·p` computed by [`RotatableCloud::range`] (the
     /// same float expression, so every coordinate is ≥ 0) and the grid must hold every cell.
     /// Bit-identical to [`voxel::cell_fast`](super::voxel::cell_fast) of [`dot_row`] per point:
-    /// the points go through the vector blocks of `coarse::blocks` (f32 where a proven
+    /// the points go through the vector blocks of `search::blocks` (f32 where a proven
     /// bound allows, the exact quotient near a cell boundary).
     pub fn voxelize<T: Real>(&self, r: &[[f64; 3]; 3], min: &Point, s: f64, grid: GridView<'_, T>) {
         #[cfg(target_arch = "x86_64")]
@@ -323,7 +323,7 @@ impl RotatableCloud {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::coarse::blocks::Blocks;
+    use crate::search::blocks::Blocks;
     use crate::rotations::RotationSet;
 
     fn lcg_cloud(n: usize, seed: u64) -> Cloud {
