@@ -160,16 +160,14 @@ fn register_in_pool(
     let mut search_ms = ms(t0);
     // The first look's search ends here; completing it (below) counts as search too.
     let t_verify = Instant::now();
-    let ready = ready.transpose()?;
-    let found = search_and_verify(
+    let checks = Verifications {
         clouds,
-        running,
-        first,
-        ready.as_ref(),
-        first_look,
-        &search,
+        ready: ready.transpose()?,
+        icp_runs: FirstStages::default(),
+        search: &search,
         cfg,
-    )?;
+    };
+    let found = Hypotheses { running, checks }.found(first, first_look)?;
     let rest_ms = found.rest_ms;
     search_ms += rest_ms;
     let (first_look, verification, mut coarse) = (found.report, found.verification, found.coarse);
@@ -217,63 +215,99 @@ struct SearchAndVerification {
     rest_ms: f64,
 }
 
-/// The first look's verification, and where it does not settle the pair, the rest of the
-/// search and the verification of every candidate (reusing the first look's ICP runs).
-fn search_and_verify(
-    (source, target): (&Cloud, &Cloud),
-    running: Search<'_, '_>,
-    first: Option<SearchResult>,
-    ready: Option<&VerifyReady>,
-    look: Option<FirstLook>,
-    search: &SearchConfig,
-    cfg: &RegistrationConfig,
-) -> Result<SearchAndVerification> {
-    let mut stages = FirstStages::default();
-    let mut report = None;
-    if let (Some(first), Some(look), Some(v), Some(ready)) =
-        (first, look, cfg.verify.as_ref(), ready)
-    {
+/// What a first look leads to.
+enum Look {
+    /// The pair is settled (or the look may not go on): the answer.
+    Settled(Box<SearchAndVerification>),
+    /// The whole search runs, with the look's report.
+    GoOn(Option<FirstLookReport>),
+}
+
+/// One registration's hypotheses, owned together: the running grid search and their
+/// verification.
+struct Hypotheses<'a> {
+    running: Search<'a, 'a>,
+    checks: Verifications<'a>,
+}
+
+/// The verification's structures (built beside the search; `None` without verification)
+/// and the ICP runs a first look leaves for the whole verification.
+struct Verifications<'a> {
+    clouds: (&'a Cloud, &'a Cloud),
+    ready: Option<VerifyReady>,
+    icp_runs: FirstStages,
+    search: &'a SearchConfig,
+    cfg: &'a RegistrationConfig,
+}
+
+impl Verifications<'_> {
+    /// The verification of the hypotheses of `found` that `pass` takes (`None` without
+    /// verification), reusing and keeping the ICP runs.
+    fn verify(&mut self, found: &SearchResult, pass: VerifyPass) -> Result<Option<Verification>> {
+        let (Some(v), Some(ready)) = (self.cfg.verify.as_ref(), self.ready.as_ref()) else {
+            return Ok(None);
+        };
+        let inputs = VerifyInputs::new(self.clouds.0, self.clouds.1, found, self.search);
+        verify_hypotheses(&inputs, ready, self.cfg, v, pass, &mut self.icp_runs).map(Some)
+    }
+}
+
+impl Hypotheses<'_> {
+    /// The first look's answer where it settles the pair (`first`: its search), else the
+    /// whole search's and verification's.
+    fn found(
+        mut self,
+        first: Option<SearchResult>,
+        look: Option<FirstLook>,
+    ) -> Result<SearchAndVerification> {
+        let look = match (first, look) {
+            (Some(first), Some(look)) => self.first_look(first, look)?,
+            _ => Look::GoOn(None),
+        };
+        match look {
+            Look::Settled(found) => Ok(*found),
+            Look::GoOn(report) => self.complete(report),
+        }
+    }
+
+    /// The first look's verification of `first` and its judgement: the whole answer when the
+    /// look settles the pair (or may not go on), else its report (none without verification)
+    /// for the whole search.
+    fn first_look(&mut self, first: SearchResult, look: FirstLook) -> Result<Look> {
         let pass = VerifyPass::FirstLook {
             count: look.hypotheses,
             gate: look.accept_score,
         };
-        let inputs = VerifyInputs::new(source, target, &first, search);
-        let verification = verify_hypotheses(&inputs, ready, cfg, v, pass, &mut stages)?;
-        let judged = look.judge(&verification, first.stats.scored, v);
+        let (Some(verification), Some(v)) =
+            (self.checks.verify(&first, pass)?, self.checks.cfg.verify)
+        else {
+            return Ok(Look::GoOn(None));
+        };
+        let judged = look.judge(&verification, first.stats.scored, &v);
         if judged.accepted || look.stop_unsettled {
-            return Ok(SearchAndVerification {
+            return Ok(Look::Settled(Box::new(SearchAndVerification {
                 coarse: first,
                 verification: Some(verification),
                 report: Some(judged),
                 rest_ms: 0.0,
-            });
+            })));
         }
-        report = Some(judged);
+        Ok(Look::GoOn(Some(judged)))
     }
-    let t_rest = Instant::now();
-    let coarse = running.complete()?;
-    let rest_ms = ms(t_rest);
-    let verification = match (&cfg.verify, ready) {
-        (Some(v), Some(ready)) => {
-            let inputs = VerifyInputs::new(source, target, &coarse, search);
-            let pass = VerifyPass::All;
-            Some(verify_hypotheses(
-                &inputs,
-                ready,
-                cfg,
-                v,
-                pass,
-                &mut stages,
-            )?)
-        }
-        _ => None,
-    };
-    Ok(SearchAndVerification {
-        coarse,
-        verification,
-        report,
-        rest_ms,
-    })
+
+    /// The rest of the search and the verification of every candidate.
+    fn complete(mut self, report: Option<FirstLookReport>) -> Result<SearchAndVerification> {
+        let t_rest = Instant::now();
+        let coarse = self.running.complete()?;
+        let rest_ms = ms(t_rest);
+        let verification = self.checks.verify(&coarse, VerifyPass::All)?;
+        Ok(SearchAndVerification {
+            coarse,
+            verification,
+            report,
+            rest_ms,
+        })
+    }
 }
 
 /// What the verification (with the first look's screening cells) and a thinned final
