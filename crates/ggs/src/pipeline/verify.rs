@@ -618,10 +618,9 @@ pub struct RejectionThreshold {
 /// so), without the full sums. The estimate is the mean of the same per-point weights over a part
 /// of the same points drawn at random. Measured on the 4167 checks of the generated FP-O-H and
 /// FP-O-M pairs (50 000 points, seed 2022), the full score lay within 3.4 of the subsample's
-/// standard errors (mean
-/// 0.62, 99 % within 2.0), so six leave a wide margin; 2772 of the 3278 rejections were
-/// taken on a subsample, none that the full score would have kept. Every other hypothesis is
-/// scored in full and decided as before.
+/// standard errors (mean 0.62, 99 % within 2.0), so six leave a wide margin; 2772 of the 3278
+/// rejections were taken on a subsample, none that the full score would have kept. Every other
+/// hypothesis is scored in full and decided as before.
 pub fn finish(
     first: FirstStage,
     thinned: &PreparedPair,
@@ -990,7 +989,7 @@ mod tests {
 
     #[test]
     fn a_subsample_draws_a_part_of_each_sample_and_estimates_the_full_score() {
-        // 90 × 90 = 8100 points: a subsample estimate at ⌈8100 / 4⌉ = 2025 of them (≥ SUBSAMPLE_POINTS).
+        // 90 × 90 = 8100 points: a subsample of ⌈8100 / 4⌉ = 2025 of them (≥ SUBSAMPLE_POINTS).
         let c = plane(90);
         let v = Verifier::new(&c, &c, 0.05, 0.01, &VerifyConfig::default());
         let small = Verifier::new(&plane(60), &c, 0.05, 0.01, &VerifyConfig::default());
@@ -1077,7 +1076,7 @@ mod tests {
         let shifted = Rigid::new(Matrix3::identity(), Vector3::new(0.45, 0.0, 0.0));
         let full = v.evidence(&shifted);
         let decide = |best: f64| check(&pair, &v, &shifted, &icp, &cfg, best, &|_| None).unwrap();
-        // A threshold just below its score: the subsample estimate cannot settle it; scored in full, kept.
+        // A threshold just below its score: the subsample cannot settle it; scored in full, kept.
         let close = decide(full.score / 0.6 * 0.95);
         assert!(
             !close.rejected_early && !close.rejected_on_subsample,

@@ -32,8 +32,6 @@
 pub use super::correlator::{ApproxBest, BestOffset, Candidates, MAX_CANDIDATES};
 use super::direct::{DirectKernel, DirectScratch};
 use super::geometry::X_BLOCK;
-#[cfg(feature = "internals")]
-pub use super::geometry::{fast_len, is_3_smooth};
 pub use super::geometry::Geometry;
 use super::grid_view::GridView;
 pub use super::grid_view::Real;
