@@ -222,3 +222,23 @@ fn views_of_a_near_symmetric_body_placed_turned_are_withdrawn_and_placed_right()
         a.times.total_ms / 1e3
     );
 }
+
+#[test]
+fn a_batch_run_at_once_gives_the_poses_of_one_run_after_another() {
+    // The default batch of two runs its registrations at once on two threads (one each)
+    // and one after the other on one thread: the same poses, bit for bit.
+    let (scans, _) = human_views(3, 6);
+    let run = |threads: usize| {
+        let runtime = Runtime {
+            threads,
+            ..Runtime::default()
+        };
+        align(scans.clone(), &Settings::default(), None, &runtime).unwrap()
+    };
+    let (one, two) = (run(1), run(2));
+    assert!(Settings::default().align_batch > 1);
+    assert!(one.registrations > 1);
+    let poses = |a: &Alignment| a.scans.iter().map(|s| s.pose).collect::<Vec<_>>();
+    assert_eq!(poses(&one), poses(&two));
+    assert_eq!(one.registrations, two.registrations);
+}

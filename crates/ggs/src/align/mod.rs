@@ -102,6 +102,55 @@ pub fn register_job(
     Ok(PlacementOutcome::of(&r, job.quick, settings.reject_ratio))
 }
 
+/// Run a batch's registrations here and return their outcomes in job order: at most
+/// `T = plan.threads` of them at once, each on its share of the `T` threads (`T / k` for `k`
+/// at once, the first `T mod k` one more). The outcomes do not depend on how the threads are
+/// shared, since a registration's result does not depend on its thread count.
+pub fn register_batch(
+    scans: &[AlignScan],
+    jobs: &[PlacementJob],
+    plan: &RegistrationConfig,
+    settings: &Settings,
+) -> Result<Vec<PlacementOutcome>> {
+    let threads = crate::threads::resolve(plan.threads);
+    let mut outcomes = Vec::with_capacity(jobs.len());
+    for group in jobs.chunks(threads) {
+        let k = group.len();
+        let runs: Vec<Result<PlacementOutcome>> = std::thread::scope(|scope| {
+            let handles: Vec<_> = group
+                .iter()
+                .enumerate()
+                .map(|(i, job)| {
+                    let mut cfg = plan.clone();
+                    cfg.threads = threads / k + usize::from(i < threads % k);
+                    let scan = &scans[job.scan].cloud;
+                    scope.spawn(move || register_job(scan, job, &cfg, settings))
+                })
+                .collect();
+            handles
+                .into_iter()
+                .zip(group)
+                .map(|(h, job)| {
+                    let name = &scans[job.scan].name;
+                    h.join().unwrap_or_else(|_| Err(stopped(name)))
+                })
+                .collect()
+        });
+        for run in runs {
+            outcomes.push(run?);
+        }
+    }
+    Ok(outcomes)
+}
+
+/// A placement's registration ended without a result (a panic: a bug, reported as an error).
+fn stopped(scan: &str) -> GgsError {
+    GgsError::param(
+        "align",
+        format!("the registration placing {scan} stopped unexpectedly"),
+    )
+}
+
 /// An alignment in steps, for a caller that runs the registrations itself (a progress
 /// display, a Ray cluster): [`Aligner::next_jobs`] gives the registrations to run (all of a
 /// batch can run at once), [`Aligner::record`] takes their outcomes, in job order, until no
@@ -261,12 +310,10 @@ impl Aligner {
             if jobs.is_empty() {
                 return self.finish(runtime);
             }
-            let mut outcomes = Vec::with_capacity(jobs.len());
             for job in &jobs {
-                let scan = &self.scans[job.scan];
-                on_job(scan, self.placed_count());
-                outcomes.push(register_job(&scan.cloud, job, &self.plan, &self.settings)?);
+                on_job(&self.scans[job.scan], self.placed_count());
             }
+            let outcomes = register_batch(&self.scans, &jobs, &self.plan, &self.settings)?;
             self.record(&jobs, outcomes)?;
         }
     }

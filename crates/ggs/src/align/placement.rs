@@ -151,6 +151,9 @@ pub struct Growth {
     /// One line per withdrawal, for the alignment's warnings.
     pub withdrawal_notes: Vec<String>,
     pub attempts: Vec<Attempt>,
+    /// The last model built ([`Growth::model_points`]) and its scans, while no placement
+    /// changed: tries onto the same scans share it.
+    last_model: Option<(Vec<usize>, Vec<Point>)>,
 }
 
 impl Growth {
@@ -174,6 +177,7 @@ impl Growth {
             withdrawn: vec![None; n],
             withdrawal_notes: Vec::new(),
             attempts: Vec::new(),
+            last_model: None,
         }
     }
 
@@ -224,7 +228,7 @@ impl Growth {
                 tried[u] = placed.len();
                 if last[u].as_ref() != Some(&model) {
                     last[u] = Some(model.clone());
-                    let model_points = self.model_points(&model);
+                    let model_points = self.model_points(&model).to_vec();
                     jobs.push(PlacementJob {
                         scan: u,
                         quick,
@@ -278,20 +282,23 @@ impl Growth {
     }
 
     /// The scans `model` in the common frame, merged and thinned to cells of
-    /// [`THIN_SPACINGS`] × their coarsest point spacing.
-    fn model_points(&self, model: &[usize]) -> Vec<Point> {
-        let mut points = Vec::new();
-        let mut spacing: f64 = 0.0;
-        for &q in model {
-            let pose = self.poses[q].expect("placed");
-            points.extend(self.prepared[q].thinned.iter().map(|p| pose.apply(p)));
-            spacing = spacing.max(self.prepared[q].spacing);
+    /// [`THIN_SPACINGS`] × their coarsest point spacing (built once while the placements
+    /// stay as they are).
+    fn model_points(&mut self, model: &[usize]) -> &[Point] {
+        if self.last_model.as_ref().is_none_or(|(m, _)| m != model) {
+            let mut points = Vec::new();
+            let mut spacing: f64 = 0.0;
+            for &q in model {
+                let pose = self.poses[q].expect("placed");
+                points.extend(self.prepared[q].thinned.iter().map(|p| pose.apply(p)));
+                spacing = spacing.max(self.prepared[q].spacing);
+            }
+            if model.len() > 1 && spacing > 0.0 {
+                points = crate::thin::cell_centroids(&points, THIN_SPACINGS * spacing);
+            }
+            self.last_model = Some((model.to_vec(), points));
         }
-        if model.len() > 1 && spacing > 0.0 {
-            crate::thin::cell_centroids(&points, THIN_SPACINGS * spacing)
-        } else {
-            points
-        }
+        &self.last_model.as_ref().expect("just built").1
     }
 
     /// Record the outcome of `job`'s registration: place the scan or keep it waiting.
@@ -325,6 +332,7 @@ impl Growth {
         match reason {
             None => {
                 self.poses[u] = Some(outcome.transform);
+                self.last_model = None;
                 self.placed_at[u] = self.placements;
                 self.placements += 1;
                 self.withdrawn[u] = None;
@@ -370,6 +378,7 @@ impl Growth {
     /// any model (quickly first), unless this is its [`MAX_WITHDRAWALS`]th withdrawal.
     pub fn withdraw(&mut self, u: usize, reason: String) {
         self.poses[u] = None;
+        self.last_model = None;
         self.withdrawals[u] += 1;
         self.withdrawn[u] = Some(reason);
         self.quick_tried_with[u] = 0;

@@ -171,8 +171,8 @@ pub struct Settings {
     /// descriptors are nearest to the scan's (a whole search's model holds every placed
     /// scan).
     pub align_model_scans: usize,
-    /// Registrations onto one model decided together (run in parallel by a parallel
-    /// executor; the result depends on this number, not on the executor).
+    /// Registrations onto one model decided together, run at once (each on its share of the
+    /// threads, or as Ray tasks); the result depends on this number, not on how they run.
     pub align_batch: usize,
 }
 
@@ -249,7 +249,7 @@ impl Settings {
             align_min_overlap: 0.4,
             align_min_confidence: 0.3,
             align_model_scans: 8,
-            align_batch: 1,
+            align_batch: 2,
         }
     }
 
