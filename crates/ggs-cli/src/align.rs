@@ -139,9 +139,10 @@ pub fn run(args: AlignArgs) -> Result<()> {
     };
     let mut aligner = Aligner::new(scans, &settings, anchor, &runtime)?;
     let pb = crate::progress::bar(aligner.scans().len() - 1, "scans placed", args.quiet);
-    let result = aligner.run(&runtime, |scan, placed| {
+    let result = aligner.run(&runtime, |batch, placed| {
         pb.set_position(placed.saturating_sub(1) as u64);
-        pb.set_message(scan.name.clone());
+        let names: Vec<&str> = batch.iter().map(|s| s.name.as_str()).collect();
+        pb.set_message(names.join(", "));
     });
     pb.finish_and_clear();
     let alignment = result?;

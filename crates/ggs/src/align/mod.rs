@@ -298,21 +298,20 @@ impl Aligner {
         Ok(())
     }
 
-    /// Run every placement here, calling `on_job(scan, scans placed so far)` before each
-    /// registration, then [`Aligner::finish`].
+    /// Run every placement here ([`register_batch`]), calling `on_batch(the scans of the
+    /// batch, scans placed so far)` before each batch, then [`Aligner::finish`].
     pub fn run(
         &mut self,
         runtime: &Runtime,
-        mut on_job: impl FnMut(&AlignScan, usize),
+        mut on_batch: impl FnMut(&[&AlignScan], usize),
     ) -> Result<Alignment> {
         loop {
             let jobs = self.next_jobs()?;
             if jobs.is_empty() {
                 return self.finish(runtime);
             }
-            for job in &jobs {
-                on_job(&self.scans[job.scan], self.placed_count());
-            }
+            let batch: Vec<&AlignScan> = jobs.iter().map(|j| &self.scans[j.scan]).collect();
+            on_batch(&batch, self.placed_count());
             let outcomes = register_batch(&self.scans, &jobs, &self.plan, &self.settings)?;
             self.record(&jobs, outcomes)?;
         }
