@@ -488,13 +488,15 @@ fn best_scoring(out: &[VerifiedHypothesis], eligible: impl Fn(usize) -> bool) ->
     })
 }
 
-/// When two distinct poses both score at least `reject_ratio` × the best (or ×
-/// [`VerifyConfig::least_score`] when that is more), refines each
+/// When two distinct poses both score at least `settle_ratio` × the best (or ×
+/// [`VerifyConfig::least_score`] when that is more), refines each such
 /// contender again on clouds thinned to the finer cells of `fine_cell_voxels` (built only
 /// then, `finer`) for `fine_iterations`, and re-scores it: on the coarser cells a right pose
 /// of a small overlap stops short (too few points where the clouds overlap) and loses to a
 /// loose look-alike (docs/pipeline.md, "Coarse-level hypotheses and contested poses"). A
-/// clear pair costs nothing more.
+/// hypothesis stopped at its check is a contender too: at 10–30 % overlap the right pose,
+/// still turning there, often scores half the best (a flip's large loose overlap) and would
+/// have passed had its ICP gone on. A clear pair costs nothing more.
 fn settle_contested(
     out: &mut [VerifiedHypothesis],
     verifier: &verify::Verifier,
@@ -506,25 +508,9 @@ fn settle_contested(
     if v.fine_cell_voxels <= 0.0 || v.fine_iterations == 0 {
         return Ok(());
     }
-    let best = out
-        .iter()
-        .map(|h| h.evidence.score)
-        .fold(v.least_score, f64::max);
-    let contenders: Vec<usize> = (0..out.len())
-        .filter(|&k| {
-            !out[k].rejected_early
-                && out[k].same_as.is_none()
-                && out[k].evidence.score >= v.reject_ratio * best
-        })
-        .collect();
-    let contested = contenders.iter().any(|&a| {
-        contenders
-            .iter()
-            .any(|&b| distinct(&out[a].transform, &out[b].transform))
-    });
-    if !contested {
+    let Some(contenders) = contested(out, v, distinct) else {
         return Ok(());
-    }
+    };
     let pair = finer()?;
     let c = RefineConfig {
         max_iterations: v.fine_iterations,
@@ -539,4 +525,91 @@ fn settle_contested(
         h.settled = true;
     }
     Ok(())
+}
+
+/// The contenders of [`settle_contested`] (indices, increasing), or `None` when the pair is
+/// not contested: every hypothesis not stopped on another's pose that scores at least
+/// `settle_ratio` × the best (or × `least_score` when that is more), when two of them are
+/// `distinct` poses.
+fn contested(
+    out: &[VerifiedHypothesis],
+    v: &VerifyConfig,
+    distinct: &dyn Fn(&Rigid, &Rigid) -> bool,
+) -> Option<Vec<usize>> {
+    let best = out
+        .iter()
+        .map(|h| h.evidence.score)
+        .fold(v.least_score, f64::max);
+    let contenders: Vec<usize> = (0..out.len())
+        .filter(|&k| out[k].same_as.is_none() && out[k].evidence.score >= v.settle_ratio * best)
+        .collect();
+    let two_poses = contenders.iter().any(|&a| {
+        contenders
+            .iter()
+            .any(|&b| distinct(&out[a].transform, &out[b].transform))
+    });
+    two_poses.then_some(contenders)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::pipeline::verify::Evidence;
+    use nalgebra::Vector3;
+
+    /// A verified hypothesis at a shift of `x` along x, scoring `score`.
+    fn verified(rank: usize, x: f64, score: f64, rejected_early: bool) -> VerifiedHypothesis {
+        let t = Rigid {
+            rotation: nalgebra::Matrix3::identity(),
+            translation: Vector3::new(x, 0.0, 0.0),
+        };
+        VerifiedHypothesis {
+            rank,
+            level: HypothesisLevel::Voxel,
+            rotation_index: rank,
+            match_score: 0,
+            polished_match_score: 0,
+            coarse_transform: t,
+            transform: t,
+            evidence: Evidence {
+                fitness_source: score,
+                fitness_target: score,
+                score,
+                points: [100, 100],
+                free_space_violations: None,
+            },
+            iterations: 10,
+            rejected_early,
+            rejected_on_subsample: false,
+            settled: false,
+            same_as: None,
+            screened: false,
+        }
+    }
+
+    /// Poses more than 1 apart along x are distinct.
+    fn apart(a: &Rigid, b: &Rigid) -> bool {
+        (a.translation - b.translation).norm() > 1.0
+    }
+
+    #[test]
+    fn a_pose_stopped_at_its_check_with_half_the_best_score_contests_the_best() {
+        let v = VerifyConfig::default();
+        let mut out = vec![
+            verified(0, 0.0, 0.20, false),
+            verified(1, 5.0, 0.11, true),
+            verified(2, 9.0, 0.09, true),
+        ];
+        assert_eq!(contested(&out, &v, &apart), Some(vec![0, 1]));
+        // Below `settle_ratio` × the best, it does not.
+        out[1].evidence.score = 0.09;
+        assert_eq!(contested(&out, &v, &apart), None);
+        // Nor one stopped on the best's pose, nor a second hypothesis on the same pose.
+        out[1].evidence.score = 0.15;
+        out[1].same_as = Some(0);
+        assert_eq!(contested(&out, &v, &apart), None);
+        out[1].same_as = None;
+        out[1].transform = out[0].transform;
+        assert_eq!(contested(&out, &v, &apart), None);
+    }
 }

@@ -109,9 +109,12 @@ pub struct VerifyConfig {
     pub max_iterations: usize,
     /// A hypothesis scoring below this fraction of the best so far at the check stops.
     pub reject_ratio: f64,
-    /// Contested poses (two distinct ones above `reject_ratio` × the best) are refined
-    /// again on clouds thinned to cells of this many voxels (0: never).
+    /// Contested poses (two distinct ones scoring at least `settle_ratio` × the best) are
+    /// refined again on clouds thinned to cells of this many voxels (0: never).
     pub fine_cell_voxels: f64,
+    /// A hypothesis scoring at least this fraction of the best is a contender of the
+    /// settling, stopped at its check or not.
+    pub settle_ratio: f64,
     /// ICP iterations of that second refinement.
     pub fine_iterations: usize,
     /// Two distinct poses whose scores are within this ratio make the result ambiguous.
@@ -184,6 +187,7 @@ impl Default for VerifyConfig {
             reject_ratio: 0.6,
             fine_cell_voxels: 0.25,
             fine_iterations: 50,
+            settle_ratio: 0.5,
             ambiguous_ratio: 0.9,
             score: VerifyScore::Tight,
             free_space_weight: 10.0,
@@ -229,6 +233,7 @@ impl VerifyConfig {
         }
         fraction("margin", self.margin)?;
         fraction("reject_ratio", self.reject_ratio)?;
+        fraction("settle_ratio", self.settle_ratio)?;
         fraction("ambiguous_ratio", self.ambiguous_ratio)?;
         fraction("free_space_tolerance", self.free_space_tolerance)?;
         for (name, v) in [

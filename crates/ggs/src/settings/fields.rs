@@ -112,6 +112,9 @@ pub struct Settings {
     pub verify_fine_cell: f64,
     /// ICP iterations of that second refinement.
     pub verify_fine_iterations: usize,
+    /// Every hypothesis scoring at least this fraction of the best, stopped at its check or
+    /// not, is a contender of that second refinement.
+    pub settle_ratio: f64,
     /// Two distinct poses verifying within this ratio of each other make the result
     /// ambiguous.
     pub ambiguous_ratio: f64,
@@ -227,6 +230,7 @@ impl Settings {
             reject_ratio: v.reject_ratio,
             verify_fine_cell: v.fine_cell_voxels,
             verify_fine_iterations: v.fine_iterations,
+            settle_ratio: v.settle_ratio,
             ambiguous_ratio: v.ambiguous_ratio,
             free_space_weight: v.free_space_weight,
             free_space_tolerance: v.free_space_tolerance,
