@@ -11,7 +11,7 @@ use super::verified::{
 use super::verify::{self, VerifyConfig};
 use crate::cloud::{Cloud, Point};
 use crate::error::{GgsError, Result};
-use crate::refine::{refine_prepared_pose, PreparedPair, RefineConfig};
+use crate::refine::{refine_prepared_pose, CorrespondenceDistance, PreparedPair, RefineConfig};
 use crate::search::{Hypothesis, SearchConfig, SearchResult};
 use crate::transform::{rotation_angle_deg, Rigid};
 use rayon::prelude::*;
@@ -308,7 +308,8 @@ pub(super) fn verify_hypotheses(
             )
         };
         let distinct = |a: &Rigid, b: &Rigid| poses.distinct(a, b);
-        settle_contested(&mut out, &ready.verifier, finer, &ready.icp, v, &distinct)?;
+        let fine = settling_icp(&ready.icp, v, inputs.coarse.stats.voxel);
+        settle_contested(&mut out, &ready.verifier, finer, &fine, v, &distinct)?;
     }
     // A hypothesis stopped on an earlier one's pose carries that one's evidence, settled or not
     // (`rank` is the position in `out`).
@@ -488,10 +489,29 @@ fn best_scoring(out: &[VerifiedHypothesis], eligible: impl Fn(usize) -> bool) ->
     })
 }
 
+/// The ICP of the settling: the verification's (`icp`), for `fine_iterations`, with the
+/// fixed correspondence distance `fine_distance_voxels` × `voxel` where that is set (0 by
+/// default). From a right pose a few degrees off at 10–30 % overlap, the quantile distance of
+/// the start takes in parts that do not overlap and can hold the pose short; a distance under
+/// a voxel pulls only the parts that already nearly meet (docs/pipeline.md, step 3, has what it
+/// gains and costs).
+fn settling_icp(icp: &RefineConfig, v: &VerifyConfig, voxel: f64) -> RefineConfig {
+    let correspondence = if v.fine_distance_voxels > 0.0 {
+        CorrespondenceDistance::Fixed(v.fine_distance_voxels * voxel)
+    } else {
+        icp.correspondence
+    };
+    RefineConfig {
+        max_iterations: v.fine_iterations,
+        correspondence,
+        ..*icp
+    }
+}
+
 /// When two distinct poses both score at least `settle_ratio` × the best (or ×
 /// [`VerifyConfig::least_score`] when that is more), refines each such
 /// contender again on clouds thinned to the finer cells of `fine_cell_voxels` (built only
-/// then, `finer`) for `fine_iterations`, and re-scores it: on the coarser cells a right pose
+/// then, `finer`) by the ICP `fine` ([`settling_icp`]), and re-scores it: on the coarser cells a right pose
 /// of a small overlap stops short (too few points where the clouds overlap) and loses to a
 /// loose look-alike (docs/pipeline.md, "Coarse-level hypotheses and contested poses"). A
 /// hypothesis stopped at its check is a contender too: at 10–30 % overlap the right pose,
@@ -501,7 +521,7 @@ fn settle_contested(
     out: &mut [VerifiedHypothesis],
     verifier: &verify::Verifier,
     finer: impl FnOnce() -> Result<PreparedPair>,
-    icp: &RefineConfig,
+    fine: &RefineConfig,
     v: &VerifyConfig,
     distinct: &dyn Fn(&Rigid, &Rigid) -> bool,
 ) -> Result<()> {
@@ -512,12 +532,8 @@ fn settle_contested(
         return Ok(());
     };
     let pair = finer()?;
-    let c = RefineConfig {
-        max_iterations: v.fine_iterations,
-        ..*icp
-    };
     for k in contenders {
-        let r = refine_prepared_pose(&pair, &out[k].transform, &c)?;
+        let r = refine_prepared_pose(&pair, &out[k].transform, fine)?;
         let h = &mut out[k];
         h.transform = r.transform;
         h.evidence = verifier.evidence(&r.transform);
@@ -590,6 +606,18 @@ mod tests {
     /// Poses more than 1 apart along x are distinct.
     fn apart(a: &Rigid, b: &Rigid) -> bool {
         (a.translation - b.translation).norm() > 1.0
+    }
+
+    #[test]
+    fn the_settling_fixes_its_distance_in_voxels_only_when_asked() {
+        let icp = RefineConfig::default();
+        let mut v = VerifyConfig::default();
+        let own = settling_icp(&icp, &v, 0.06);
+        assert_eq!(own.correspondence, icp.correspondence);
+        assert_eq!(own.max_iterations, v.fine_iterations);
+        v.fine_distance_voxels = 0.75;
+        let fixed = settling_icp(&icp, &v, 0.06);
+        assert_eq!(fixed.correspondence, CorrespondenceDistance::Fixed(0.75 * 0.06));
     }
 
     #[test]

@@ -117,6 +117,8 @@ pub struct VerifyConfig {
     pub settle_ratio: f64,
     /// ICP iterations of that second refinement.
     pub fine_iterations: usize,
+    /// Its fixed correspondence distance, in voxels (0: the refinement's own rule).
+    pub fine_distance_voxels: f64,
     /// Two distinct poses whose scores are within this ratio make the result ambiguous.
     pub ambiguous_ratio: f64,
     /// How a point within `D` counts.
@@ -187,6 +189,7 @@ impl Default for VerifyConfig {
             reject_ratio: 0.6,
             fine_cell_voxels: 0.25,
             fine_iterations: 50,
+            fine_distance_voxels: 0.0,
             settle_ratio: 0.5,
             ambiguous_ratio: 0.9,
             score: VerifyScore::Tight,
@@ -242,6 +245,7 @@ impl VerifyConfig {
             ("verify_distance_range", self.scan_distance_fraction),
             ("verify_cell", self.cell_voxels),
             ("verify_fine_cell", self.fine_cell_voxels),
+            ("verify_fine_distance", self.fine_distance_voxels),
             ("free_space_weight", self.free_space_weight),
             ("free_space_margin", self.free_space_margin_voxels),
         ] {
@@ -747,7 +751,7 @@ mod tests {
     fn every_setting_out_of_range_is_refused_by_name() {
         assert!(VerifyConfig::default().validate().is_ok());
         let d = VerifyConfig::default;
-        let bad: [(VerifyConfig, &str); 6] = [
+        let bad: [(VerifyConfig, &str); 8] = [
             (VerifyConfig { margin: 3.0, ..d() }, "margin"),
             (
                 VerifyConfig {
@@ -783,6 +787,20 @@ mod tests {
                     ..d()
                 },
                 "free_space_weight",
+            ),
+            (
+                VerifyConfig {
+                    settle_ratio: 1.5,
+                    ..d()
+                },
+                "settle_ratio",
+            ),
+            (
+                VerifyConfig {
+                    fine_distance_voxels: -0.5,
+                    ..d()
+                },
+                "verify_fine_distance",
             ),
         ];
         for (cfg, name) in bad {

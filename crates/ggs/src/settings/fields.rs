@@ -112,6 +112,8 @@ pub struct Settings {
     pub verify_fine_cell: f64,
     /// ICP iterations of that second refinement.
     pub verify_fine_iterations: usize,
+    /// Its fixed correspondence distance, in voxels (0: the refinement's own rule).
+    pub verify_fine_distance: f64,
     /// Every hypothesis scoring at least this fraction of the best, stopped at its check or
     /// not, is a contender of that second refinement.
     pub settle_ratio: f64,
@@ -230,6 +232,7 @@ impl Settings {
             reject_ratio: v.reject_ratio,
             verify_fine_cell: v.fine_cell_voxels,
             verify_fine_iterations: v.fine_iterations,
+            verify_fine_distance: v.fine_distance_voxels,
             settle_ratio: v.settle_ratio,
             ambiguous_ratio: v.ambiguous_ratio,
             free_space_weight: v.free_space_weight,

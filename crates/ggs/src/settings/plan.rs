@@ -138,6 +138,7 @@ impl Settings {
             reject_ratio: self.reject_ratio,
             fine_cell_voxels: self.verify_fine_cell,
             fine_iterations: self.verify_fine_iterations,
+            fine_distance_voxels: self.verify_fine_distance,
             settle_ratio: self.settle_ratio,
             ambiguous_ratio: self.ambiguous_ratio,
             score: self.verify_score,
