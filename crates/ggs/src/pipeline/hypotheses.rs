@@ -617,7 +617,10 @@ mod tests {
         assert_eq!(own.max_iterations, v.fine_iterations);
         v.fine_distance_voxels = 0.75;
         let fixed = settling_icp(&icp, &v, 0.06);
-        assert_eq!(fixed.correspondence, CorrespondenceDistance::Fixed(0.75 * 0.06));
+        assert_eq!(
+            fixed.correspondence,
+            CorrespondenceDistance::Fixed(0.75 * 0.06)
+        );
     }
 
     #[test]
