@@ -126,7 +126,7 @@ impl FirstLook {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::pipeline::{Evidence, HypothesisLevel, VerifiedHypothesis, VerifyScore};
+    use crate::pipeline::{VerifiedHypothesis, VerifyScore};
     use crate::transform::Rigid;
 
     /// A verification of hypotheses scoring `scores`, the first chosen, the best of the rest
@@ -135,28 +135,7 @@ mod tests {
         let hypotheses: Vec<VerifiedHypothesis> = scores
             .iter()
             .enumerate()
-            .map(|(rank, &score)| VerifiedHypothesis {
-                rank,
-                level: HypothesisLevel::Voxel,
-                rotation_index: rank,
-                match_score: 100,
-                polished_match_score: 100,
-                coarse_transform: Rigid::identity(),
-                transform: Rigid::identity(),
-                evidence: Evidence {
-                    fitness_source: score,
-                    fitness_target: score,
-                    score,
-                    points: [100, 100],
-                    free_space_violations: None,
-                },
-                iterations: 10,
-                rejected_early: false,
-                rejected_on_subsample: false,
-                settled: false,
-                same_as: None,
-                screened: false,
-            })
+            .map(|(rank, &score)| VerifiedHypothesis::scoring(rank, Rigid::identity(), score))
             .collect();
         let runner_up = (1..scores.len()).reduce(|a, b| if scores[b] > scores[a] { b } else { a });
         Verification {

@@ -570,7 +570,6 @@ fn contested(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::pipeline::verify::Evidence;
     use nalgebra::Vector3;
 
     /// A verified hypothesis at a shift of `x` along x, scoring `score`.
@@ -580,26 +579,8 @@ mod tests {
             translation: Vector3::new(x, 0.0, 0.0),
         };
         VerifiedHypothesis {
-            rank,
-            level: HypothesisLevel::Voxel,
-            rotation_index: rank,
-            match_score: 0,
-            polished_match_score: 0,
-            coarse_transform: t,
-            transform: t,
-            evidence: Evidence {
-                fitness_source: score,
-                fitness_target: score,
-                score,
-                points: [100, 100],
-                free_space_violations: None,
-            },
-            iterations: 10,
             rejected_early,
-            rejected_on_subsample: false,
-            settled: false,
-            same_as: None,
-            screened: false,
+            ..VerifiedHypothesis::scoring(rank, t, score)
         }
     }
 

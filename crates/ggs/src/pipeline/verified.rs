@@ -44,6 +44,36 @@ pub struct VerifiedHypothesis {
     pub screened: bool,
 }
 
+#[cfg(test)]
+impl VerifiedHypothesis {
+    /// For tests: hypothesis `rank` at `transform` (from a voxel-size rotation of that
+    /// index), its ICP stopped after 10 iterations, both sides scoring `score`.
+    pub(crate) fn scoring(rank: usize, transform: Rigid, score: f64) -> Self {
+        VerifiedHypothesis {
+            rank,
+            level: HypothesisLevel::Voxel,
+            rotation_index: rank,
+            match_score: 100,
+            polished_match_score: 100,
+            coarse_transform: transform,
+            transform,
+            evidence: Evidence {
+                fitness_source: score,
+                fitness_target: score,
+                score,
+                points: [100, 100],
+                free_space_violations: None,
+            },
+            iterations: 10,
+            rejected_early: false,
+            rejected_on_subsample: false,
+            settled: false,
+            same_as: None,
+            screened: false,
+        }
+    }
+}
+
 /// The level of the grid search a hypothesis comes from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
 #[serde(rename_all = "lowercase")]
