@@ -509,11 +509,11 @@ fn settling_icp(icp: &RefineConfig, v: &VerifyConfig, voxel: f64) -> RefineConfi
 }
 
 /// When two distinct poses both score at least `settle_ratio` × the best (or ×
-/// [`VerifyConfig::least_score`] when that is more), refines each such
-/// contender again on clouds thinned to the finer cells of `fine_cell_voxels` (built only
-/// then, `finer`) by the ICP `fine` ([`settling_icp`]), and re-scores it: on the coarser cells a right pose
-/// of a small overlap stops short (too few points where the clouds overlap) and loses to a
-/// loose look-alike (docs/pipeline.md, "Coarse-level hypotheses and contested poses"). A
+/// [`VerifyConfig::least_score`] when that is more), refines each such contender again on
+/// clouds thinned to the finer cells of `fine_cell_voxels` (built only then, `finer`) by the
+/// ICP `fine` ([`settling_icp`]), and re-scores it: on the coarser cells a right pose of a
+/// small overlap stops short (too few points where the clouds overlap) and loses to a loose
+/// look-alike (docs/pipeline.md, "Coarse-level hypotheses and contested poses"). A
 /// hypothesis stopped at its check is a contender too: at 10–30 % overlap the right pose,
 /// still turning there, often scores half the best (a flip's large loose overlap) and would
 /// have passed had its ICP gone on. A clear pair costs nothing more.

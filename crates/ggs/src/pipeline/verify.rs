@@ -112,13 +112,13 @@ pub struct VerifyConfig {
     /// Contested poses (two distinct ones scoring at least `settle_ratio` × the best) are
     /// refined again on clouds thinned to cells of this many voxels (0: never).
     pub fine_cell_voxels: f64,
-    /// A hypothesis scoring at least this fraction of the best is a contender of the
-    /// settling, stopped at its check or not.
-    pub settle_ratio: f64,
     /// ICP iterations of that second refinement.
     pub fine_iterations: usize,
     /// Its fixed correspondence distance, in voxels (0: the refinement's own rule).
     pub fine_distance_voxels: f64,
+    /// A hypothesis scoring at least this fraction of the best is a contender of that second
+    /// refinement, stopped at its check or not.
+    pub settle_ratio: f64,
     /// Two distinct poses whose scores are within this ratio make the result ambiguous.
     pub ambiguous_ratio: f64,
     /// How a point within `D` counts.
