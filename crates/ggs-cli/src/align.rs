@@ -107,10 +107,13 @@ pub fn run(args: AlignArgs) -> Result<()> {
     let settings = settings(&args)?;
     let paths = scan_paths(&args)?;
     let opts = args.input.options()?;
-    let scans: Vec<AlignScan> = paths
-        .iter()
-        .map(|(p, origin)| {
-            let loaded = files::load(Path::new(p), &opts, args.quiet);
+    let files: Vec<&Path> = paths.iter().map(|(p, _)| Path::new(p)).collect();
+    let loaded =
+        ggs::threads::in_pool(args.threads, || files::load_all(&files, &opts, args.quiet))?;
+    let scans: Vec<AlignScan> = loaded
+        .into_iter()
+        .zip(&paths)
+        .map(|(loaded, (p, origin))| {
             let loaded = if origin == CLI {
                 loaded?
             } else {
@@ -147,7 +150,7 @@ pub fn run(args: AlignArgs) -> Result<()> {
     pb.finish_and_clear();
     let alignment = result?;
     let scans = aligner.scans();
-    write_outputs(&args, scans, &alignment)?;
+    ggs::threads::in_pool(args.threads, || write_outputs(&args, scans, &alignment))??;
     if !args.quiet {
         for w in &alignment.warnings {
             eprintln!("warning: {w}");

@@ -63,6 +63,20 @@ pub fn load(path: &Path, opts: &ReadOptions, quiet: bool) -> Result<LoadedCloud>
     Ok(loaded)
 }
 
+/// Read several clouds side by side ([`io::read_clouds_with`]), warning as [`load`] does, in
+/// the order of `paths`.
+pub fn load_all(paths: &[&Path], opts: &ReadOptions, quiet: bool) -> Vec<Result<LoadedCloud>> {
+    io::read_clouds_with(paths, opts)
+        .into_iter()
+        .zip(paths)
+        .map(|(loaded, path)| {
+            let loaded = loaded?;
+            warn_dropped(path, loaded.dropped_non_finite, quiet);
+            Ok(loaded)
+        })
+        .collect()
+}
+
 /// Read a file's points as `f64`, exactly as written; warns as [`load`] does.
 pub fn load_points(path: &Path, opts: &ReadOptions, quiet: bool) -> Result<LoadedPoints> {
     let loaded = io::read_points_with(path, opts)?;

@@ -32,6 +32,11 @@ pub struct Aabb {
 }
 
 impl Aabb {
+    /// `(min + max) / 2` per axis.
+    pub fn centre(&self) -> Point {
+        [0, 1, 2].map(|d| 0.5 * (self.min[d] + self.max[d]))
+    }
+
     /// `max − min` per axis.
     pub fn extent(&self) -> Point {
         [

@@ -17,11 +17,11 @@
 //! Levenberg-Marquardt in fact.rs (factrs: factor graphs on Lie groups, sparse Cholesky by
 //! faer, single-threaded, so the result does not depend on the thread count).
 
+use super::icp::{edge_pair, IcpClouds};
 use super::overlap::{overlap_distance, overlap_share, OVERLAP_SAMPLE};
 use super::scan::Prepared;
-use crate::cloud::Cloud;
 use crate::error::Result;
-use crate::refine::{self, CorrespondenceDistance, PreparedPair, RefineConfig};
+use crate::refine::{self, CorrespondenceDistance, RefineConfig};
 use crate::transform::Rigid;
 use factrs::assign_symbols;
 use factrs::core::{BetweenResidual, Graph, Huber, LevenMarquardt, PriorResidual, Values, SE3};
@@ -92,6 +92,7 @@ pub fn icp_distance(prepared: &[Prepared], i: usize, j: usize) -> f64 {
 /// documentation), in pair order.
 pub fn measure_edges(
     prepared: &[Prepared],
+    icp: &IcpClouds,
     poses: &[Option<Rigid>],
     refine_cfg: &RefineConfig,
 ) -> Result<Vec<Edge>> {
@@ -114,7 +115,7 @@ pub fn measure_edges(
     let pairs = strongest_per_scan(&candidates, poses.len());
     pairs
         .par_iter()
-        .map(|&(i, j)| measure_edge(prepared, poses, i, j, refine_cfg))
+        .map(|&(i, j)| measure_edge(prepared, icp, poses, (i, j), refine_cfg))
         .collect()
 }
 
@@ -147,9 +148,9 @@ impl Edge {
 
 fn measure_edge(
     prepared: &[Prepared],
+    icp: &IcpClouds,
     poses: &[Option<Rigid>],
-    i: usize,
-    j: usize,
+    (i, j): (usize, usize),
     refine_cfg: &RefineConfig,
 ) -> Result<Edge> {
     let (pi, pj) = (poses[i].unwrap(), poses[j].unwrap());
@@ -159,9 +160,7 @@ fn measure_edge(
         correspondence: CorrespondenceDistance::Fixed(icp_distance(prepared, i, j)),
         ..*refine_cfg
     };
-    let source = Cloud::new(prepared[j].icp.clone());
-    let target = Cloud::new(prepared[i].icp.clone());
-    let pair = PreparedPair::new(&source, &target, cfg.neighbors, cfg.epsilon)?;
+    let pair = edge_pair(icp.get(prepared, j), icp.get(prepared, i));
     let z = refine::refine_prepared_pose(&pair, &start, &cfg)?.transform;
     let overlap = overlap_share(prepared, j, &z, &[i], &[Rigid::identity()], OVERLAP_SAMPLE);
     let moved_deg = crate::transform::rotation_angle_deg(&z.rotation, &start.rotation);

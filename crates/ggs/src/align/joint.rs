@@ -8,10 +8,10 @@
 //! corrected against all the overlapping surface at once.
 
 use super::graph::{icp_distance, Edge};
+use super::icp::{union_pair, IcpClouds};
 use super::scan::Prepared;
-use crate::cloud::Cloud;
 use crate::error::Result;
-use crate::refine::{self, CorrespondenceDistance, PreparedPair, RefineConfig};
+use crate::refine::{self, CorrespondenceDistance, RefineConfig};
 use crate::transform::Rigid;
 use rayon::prelude::*;
 
@@ -33,6 +33,7 @@ fn neighbours(i: usize, edges: &[Edge]) -> Vec<usize> {
 /// [`JOINT_ROUNDS`] rounds (see the module documentation); returns the new poses.
 pub fn refine_jointly(
     prepared: &[Prepared],
+    icp: &IcpClouds,
     poses: &[Option<Rigid>],
     edges: &[Edge],
     anchor: usize,
@@ -42,7 +43,7 @@ pub fn refine_jointly(
     for _ in 0..JOINT_ROUNDS {
         let next: Vec<Option<Rigid>> = (0..poses.len())
             .into_par_iter()
-            .map(|i| refine_one(prepared, &poses, edges, i, anchor, refine_cfg))
+            .map(|i| refine_one(prepared, icp, &poses, edges, (i, anchor), refine_cfg))
             .collect::<Result<_>>()?;
         poses = next;
     }
@@ -51,10 +52,10 @@ pub fn refine_jointly(
 
 fn refine_one(
     prepared: &[Prepared],
+    icp: &IcpClouds,
     poses: &[Option<Rigid>],
     edges: &[Edge],
-    i: usize,
-    anchor: usize,
+    (i, anchor): (usize, usize),
     refine_cfg: &RefineConfig,
 ) -> Result<Option<Rigid>> {
     let Some(pose) = poses[i] else {
@@ -64,19 +65,18 @@ fn refine_one(
     if i == anchor || others.is_empty() {
         return Ok(Some(pose));
     }
-    let mut target = Vec::new();
+    let mut parts = Vec::with_capacity(others.len());
     let mut d: f64 = 0.0;
     for &j in &others {
         let pj = poses[j].expect("an edge joins placed scans");
-        target.extend(prepared[j].icp.iter().map(|p| pj.apply(p)));
+        parts.push((icp.get(prepared, j), pj));
         d = d.max(icp_distance(prepared, i, j) / 2.0);
     }
     let cfg = RefineConfig {
         correspondence: CorrespondenceDistance::Fixed(d),
         ..*refine_cfg
     };
-    let source = Cloud::new(prepared[i].icp.clone());
-    let pair = PreparedPair::new(&source, &Cloud::new(target), cfg.neighbors, cfg.epsilon)?;
+    let pair = union_pair(icp.get(prepared, i), &parts);
     Ok(Some(
         refine::refine_prepared_pose(&pair, &pose, &cfg)?.transform,
     ))

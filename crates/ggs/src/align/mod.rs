@@ -23,6 +23,7 @@
 
 pub mod folder;
 pub mod graph;
+pub mod icp;
 pub mod joint;
 pub mod overlap;
 pub mod placement;
@@ -166,6 +167,8 @@ pub struct Aligner {
     anchor: usize,
     /// Threads of the edges' ICP.
     threads: usize,
+    /// The scans' ICP clouds, shared by the edges and the joint refinement.
+    icp: icp::IcpClouds,
     /// The pose graph's edges measured when no job was left, if no placement changed since.
     checked: Option<Vec<graph::Edge>>,
     started: Instant,
@@ -205,7 +208,12 @@ impl Aligner {
             prepare_ms: ms(started),
             ..AlignTimes::default()
         };
+        let icp = icp::IcpClouds::new(
+            scans.len(),
+            &alignment_refine_config(settings, runtime.threads),
+        );
         Ok(Aligner {
+            icp,
             scans,
             settings: settings.clone(),
             plan,
@@ -260,7 +268,7 @@ impl Aligner {
         let refine_cfg = alignment_refine_config(&self.settings, self.threads);
         let (prepared, poses) = (&self.growth.prepared, &self.growth.poses);
         crate::threads::in_pool(self.threads, || {
-            graph::measure_edges(prepared, poses, &refine_cfg)
+            graph::measure_edges(prepared, &self.icp, poses, &refine_cfg)
         })?
     }
 
@@ -337,7 +345,14 @@ impl Aligner {
         let graph_failed = optimized.is_none();
         let optimized = optimized.unwrap_or_else(|| poses.clone());
         let poses = crate::threads::in_pool(runtime.threads, || {
-            joint::refine_jointly(prepared, &optimized, &edges, self.seed, &refine_cfg)
+            joint::refine_jointly(
+                prepared,
+                &self.icp,
+                &optimized,
+                &edges,
+                self.seed,
+                &refine_cfg,
+            )
         })??;
         times.joint_ms = ms(t);
         times.total_ms = ms(self.started);

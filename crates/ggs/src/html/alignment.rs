@@ -41,10 +41,16 @@ pub fn write_folder_and_report(
     alignment: &Alignment,
     command: Option<String>,
 ) -> Result<()> {
-    crate::align::write_folder(dir, scans, alignment)?;
-    let mut report = AlignmentReport::new(scans, alignment);
-    report.command = command;
-    report.write(&dir.join("report.html"))
+    let (folder, report) = rayon::join(
+        || crate::align::write_folder(dir, scans, alignment),
+        || {
+            let mut report = AlignmentReport::new(scans, alignment);
+            report.command = command;
+            report.html()
+        },
+    );
+    folder?;
+    crate::io::write_atomic(&dir.join("report.html"), report.as_bytes())
 }
 
 /// Everything the report shows: the alignment and display samples of the placed scans,

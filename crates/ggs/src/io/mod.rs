@@ -212,6 +212,19 @@ pub fn read_exact_points(path: &Path, format: Option<Format>) -> Result<LoadedPo
     )
 }
 
+/// Read several point clouds as [`read_cloud_with`] reads each, side by side on the current
+/// thread pool; the results are in the order of `paths`.
+pub fn read_clouds_with<P: AsRef<Path> + Sync>(
+    paths: &[P],
+    opts: &ReadOptions,
+) -> Vec<Result<LoadedCloud>> {
+    use rayon::prelude::*;
+    paths
+        .par_iter()
+        .map(|p| read_cloud_with(p.as_ref(), opts))
+        .collect()
+}
+
 /// Bytes of the read buffer: large enough that the kernel reads ahead at disk speed.
 const READ_BUFFER: usize = 1 << 20;
 

@@ -17,7 +17,7 @@ use crate::error::{GgsError, Result};
 use crate::thin::cell_centroids;
 use crate::transform::Rigid;
 use nalgebra::Vector3;
-use std::sync::OnceLock;
+use std::sync::{Arc, OnceLock};
 
 /// One cloud of a [`PreparedPair`], in the pair's frame.
 pub struct PreparedCloud {
@@ -26,19 +26,60 @@ pub struct PreparedCloud {
     epsilon: f64,
     index: OnceLock<PointIndex>,
     shapes: OnceLock<LazyShapes>,
+    /// Local shapes given with the points, one per point ([`PreparedCloud::with_shapes`]):
+    /// the cloud then never computes its own.
+    known: Option<Arc<[LocalShape]>>,
     median_kth: OnceLock<Option<f64>>,
 }
 
 impl PreparedCloud {
-    fn new(points: Vec<Point>, neighbors: usize, epsilon: f64) -> Self {
+    /// `points` (in the frame of the pair they will join), their tree and shapes (of
+    /// `neighbors` points, ε along the normal) built on first use.
+    pub fn new(points: Vec<Point>, neighbors: usize, epsilon: f64) -> Self {
         PreparedCloud {
             points,
             neighbors,
             epsilon,
             index: OnceLock::new(),
             shapes: OnceLock::new(),
+            known: None,
             median_kth: OnceLock::new(),
         }
+    }
+
+    /// `points` with their local shapes known already (`shapes[i]` of `points[i]`, shapes
+    /// do not change when a cloud is translated, and turn with it): a cloud's shapes computed
+    /// once serve every pair it joins.
+    pub fn with_shapes(
+        points: Vec<Point>,
+        shapes: Arc<[LocalShape]>,
+        neighbors: usize,
+        epsilon: f64,
+    ) -> Self {
+        assert_eq!(points.len(), shapes.len(), "one shape per point");
+        PreparedCloud {
+            known: Some(shapes),
+            ..Self::new(points, neighbors, epsilon)
+        }
+    }
+
+    /// Neighbours of a local shape.
+    pub fn neighbors(&self) -> usize {
+        self.neighbors
+    }
+
+    /// GICP's ε along a local shape's normal.
+    pub fn epsilon(&self) -> f64 {
+        self.epsilon
+    }
+
+    /// Every point's local shape, computed now where not known (in point order).
+    pub fn all_shapes(&self) -> Arc<[LocalShape]> {
+        if let Some(k) = &self.known {
+            return k.clone();
+        }
+        self.ensure_shapes(0..self.points.len());
+        (0..self.points.len()).map(|i| *self.shape(i)).collect()
     }
 
     /// [`super::grid::median_kth_distance`] of the points to their `neighbors`-th nearest
@@ -59,6 +100,9 @@ impl PreparedCloud {
     /// The local shape of point `i` (its neighbourhood's normal and covariance).
     #[inline]
     pub fn shape(&self, i: usize) -> &LocalShape {
+        if let Some(k) = &self.known {
+            return &k[i];
+        }
         let index = self.index();
         self.shapes
             .get_or_init(|| LazyShapes::new(&self.points, index, self.neighbors, self.epsilon))
@@ -68,15 +112,21 @@ impl PreparedCloud {
     /// Compute the local shapes of the points `needed` now, together (see
     /// [`LazyShapes::ensure`]); [`Self::shape`] then only reads them.
     pub fn ensure_shapes(&self, needed: impl IntoIterator<Item = usize>) {
+        if self.known.is_some() {
+            return;
+        }
         let index = self.index();
         self.shapes
             .get_or_init(|| LazyShapes::new(&self.points, index, self.neighbors, self.epsilon))
             .ensure(&self.points, index, needed);
     }
 
-    /// Build the tree and the shape cache now (both are built on first use otherwise).
+    /// Build the tree and the shape cache now (both are built on first use otherwise); a
+    /// cloud of known shapes builds its tree on first use only.
     pub fn prepare(&self) {
-        self.shape(0);
+        if self.known.is_none() {
+            self.shape(0);
+        }
     }
 }
 
@@ -97,8 +147,8 @@ fn check(source: &Cloud, target: &Cloud, neighbors: usize) -> Result<()> {
 pub struct PreparedPair {
     /// The frame's origin in the clouds' frame: the target's origin.
     centre: Vector3<f64>,
-    pub source: PreparedCloud,
-    pub target: PreparedCloud,
+    pub source: Arc<PreparedCloud>,
+    pub target: Arc<PreparedCloud>,
     /// Neighbours and ε of the local shapes.
     pub neighbors: usize,
     pub epsilon: f64,
@@ -163,12 +213,31 @@ impl PreparedPair {
         neighbors: usize,
         epsilon: f64,
     ) -> Self {
+        Self::from_clouds(
+            centre,
+            PreparedCloud::new(source, neighbors, epsilon).into(),
+            PreparedCloud::new(target, neighbors, epsilon).into(),
+        )
+    }
+
+    /// A pair of clouds prepared already, both given in the frame at `centre` (in the clouds'
+    /// frame) and for the same neighbours and ε: a cloud shared by several pairs keeps its
+    /// tree and shapes.
+    pub fn from_clouds(
+        centre: Point,
+        source: Arc<PreparedCloud>,
+        target: Arc<PreparedCloud>,
+    ) -> Self {
+        assert!(
+            source.neighbors == target.neighbors && source.epsilon == target.epsilon,
+            "both clouds prepared for the same shapes"
+        );
         PreparedPair {
             centre: Vector3::from(centre),
-            source: PreparedCloud::new(source, neighbors, epsilon),
-            target: PreparedCloud::new(target, neighbors, epsilon),
-            neighbors,
-            epsilon,
+            neighbors: target.neighbors,
+            epsilon: target.epsilon,
+            source,
+            target,
         }
     }
 
