@@ -41,6 +41,7 @@ use crate::pipeline::RegistrationConfig;
 use crate::refine::RefineConfig;
 use crate::settings::{Runtime, Settings};
 use crate::transform::Rigid;
+use rayon::prelude::*;
 use std::sync::Arc;
 use std::time::Instant;
 
@@ -103,45 +104,29 @@ pub fn register_job(
     Ok(PlacementOutcome::of(&r, job.quick, settings.reject_ratio))
 }
 
-/// Run a batch's registrations here and return their outcomes in job order: at most
-/// `T = plan.threads` of them at once, each on its share of the `T` threads (`T / k` for `k`
-/// at once, the first `T mod k` one more). The outcomes do not depend on how the threads are
-/// shared, since a registration's result does not depend on its thread count.
+/// Run a batch's registrations here and return their outcomes in job order, side by side on
+/// one pool of `plan.threads` threads that their own parallel work shares (a thread that
+/// finishes its registration helps the others'). The outcomes do not depend on how the
+/// threads are shared, since a registration's result does not depend on its thread count.
 pub fn register_batch(
     scans: &[AlignScan],
     jobs: &[PlacementJob],
     plan: &RegistrationConfig,
     settings: &Settings,
 ) -> Result<Vec<PlacementOutcome>> {
-    let threads = crate::threads::resolve(plan.threads);
-    let mut outcomes = Vec::with_capacity(jobs.len());
-    for group in jobs.chunks(threads) {
-        let k = group.len();
-        let runs: Vec<Result<PlacementOutcome>> = std::thread::scope(|scope| {
-            let handles: Vec<_> = group
-                .iter()
-                .enumerate()
-                .map(|(i, job)| {
-                    let mut cfg = plan.clone();
-                    cfg.threads = threads / k + usize::from(i < threads % k);
-                    let scan = &scans[job.scan].cloud;
-                    scope.spawn(move || register_job(scan, job, &cfg, settings))
-                })
-                .collect();
-            handles
-                .into_iter()
-                .zip(group)
-                .map(|(h, job)| {
-                    let name = &scans[job.scan].name;
-                    h.join().unwrap_or_else(|_| Err(stopped(name)))
-                })
-                .collect()
-        });
-        for run in runs {
-            outcomes.push(run?);
-        }
-    }
-    Ok(outcomes)
+    let mut cfg = plan.clone();
+    cfg.threads = crate::threads::resolve(plan.threads);
+    let runs: Vec<Result<PlacementOutcome>> = crate::threads::in_pool(cfg.threads, || {
+        jobs.par_iter()
+            .map(|job| {
+                let scan = &scans[job.scan];
+                let run = || register_job(&scan.cloud, job, &cfg, settings);
+                std::panic::catch_unwind(std::panic::AssertUnwindSafe(run))
+                    .unwrap_or_else(|_| Err(stopped(&scan.name)))
+            })
+            .collect()
+    })?;
+    runs.into_iter().collect()
 }
 
 /// A placement's registration ended without a result (a panic: a bug, reported as an error).

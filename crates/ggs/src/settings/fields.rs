@@ -176,7 +176,7 @@ pub struct Settings {
     /// descriptors are nearest to the scan's (a whole search's model holds every placed
     /// scan).
     pub align_model_scans: usize,
-    /// Registrations onto one model decided together, run at once (each on its share of the
+    /// Registrations onto one model decided together, run side by side (on one pool of
     /// threads, or as Ray tasks); the result depends on this number, not on how they run.
     pub align_batch: usize,
 }
