@@ -45,6 +45,20 @@ impl IcpCloud {
             shapes,
         }
     }
+
+    /// The points in the frame at `frame` (in the scan's own frame), with their shapes: the
+    /// source of a pair whose target lies in that frame.
+    fn in_frame(&self, frame: Point) -> PreparedCloud {
+        let shift = [0, 1, 2].map(|d| self.centre[d] - frame[d]);
+        let points = self
+            .cloud
+            .points
+            .iter()
+            .map(|p| [0, 1, 2].map(|d| p[d] + shift[d]))
+            .collect();
+        let (neighbors, epsilon) = (self.cloud.neighbors(), self.cloud.epsilon());
+        PreparedCloud::with_shapes(points, self.shapes.clone(), neighbors, epsilon)
+    }
 }
 
 /// The scans' ICP clouds, each prepared on first use for the refinement's neighbours and ε.
@@ -73,19 +87,7 @@ impl IcpClouds {
 /// The pair for an ICP of `source`'s points onto `target`'s, each given in its scan's own
 /// frame: the refinement finds `p_target = T · p_source` in those frames.
 pub fn edge_pair(source: &IcpCloud, target: &IcpCloud) -> PreparedPair {
-    let shift = [0, 1, 2].map(|d| source.centre[d] - target.centre[d]);
-    let points = source
-        .cloud
-        .points
-        .iter()
-        .map(|p| [0, 1, 2].map(|d| p[d] + shift[d]))
-        .collect();
-    let moved = PreparedCloud::with_shapes(
-        points,
-        source.shapes.clone(),
-        target.cloud.neighbors(),
-        target.cloud.epsilon(),
-    );
+    let moved = source.in_frame(target.centre);
     PreparedPair::from_clouds(target.centre, Arc::new(moved), target.cloud.clone())
 }
 
@@ -111,14 +113,7 @@ pub fn union_pair(source: &IcpCloud, parts: &[(&IcpCloud, Rigid)]) -> PreparedPa
     }
     let (neighbors, epsilon) = (source.cloud.neighbors(), source.cloud.epsilon());
     let target = PreparedCloud::with_shapes(points, shapes.into(), neighbors, epsilon);
-    let shift = [0, 1, 2].map(|d| source.centre[d] - centre[d]);
-    let moved = source
-        .cloud
-        .points
-        .iter()
-        .map(|p| [0, 1, 2].map(|d| p[d] + shift[d]))
-        .collect();
-    let moved = PreparedCloud::with_shapes(moved, source.shapes.clone(), neighbors, epsilon);
+    let moved = source.in_frame(centre);
     PreparedPair::from_clouds(centre, Arc::new(moved), Arc::new(target))
 }
 
@@ -162,15 +157,20 @@ mod tests {
         }
     }
 
-    #[test]
-    fn a_scans_shapes_turn_with_it() {
+    /// The patch's ICP cloud, and that of the patch moved by `m`.
+    fn patch_and_moved(m: &Rigid) -> (IcpCloud, IcpCloud) {
         let points = patch();
-        let m = motion(70.0, [0.3, -1.0, 2.0]);
         let moved: Vec<Point> = points.iter().map(|p| m.apply(p)).collect();
-        let (a, b) = (
+        (
             IcpCloud::new(&points, 20, 1e-3),
             IcpCloud::new(&moved, 20, 1e-3),
-        );
+        )
+    }
+
+    #[test]
+    fn a_scans_shapes_turn_with_it() {
+        let m = motion(70.0, [0.3, -1.0, 2.0]);
+        let (a, b) = patch_and_moved(&m);
         let r = m.rotation;
         for (sa, sb) in a.shapes.iter().zip(b.shapes.iter()) {
             let turned = r * sa.covariance * r.transpose();
@@ -180,14 +180,9 @@ mod tests {
 
     #[test]
     fn an_edge_finds_the_relative_pose_of_two_scans_in_their_own_frames() {
-        let points = patch();
         // Scan b is scan a seen from another frame: p_b = m · p_a.
         let m = motion(3.0, [0.01, -0.02, 0.015]);
-        let moved: Vec<Point> = points.iter().map(|p| m.apply(p)).collect();
-        let (a, b) = (
-            IcpCloud::new(&points, 20, 1e-3),
-            IcpCloud::new(&moved, 20, 1e-3),
-        );
+        let (a, b) = patch_and_moved(&m);
         let found = refine_prepared_pose(&edge_pair(&a, &b), &Rigid::identity(), &icp_cfg())
             .unwrap()
             .transform;
