@@ -532,11 +532,19 @@ fn settle_contested(
         return Ok(());
     };
     let pair = finer()?;
-    for k in contenders {
-        let r = refine_prepared_pose(&pair, &out[k].transform, fine)?;
+    // The contenders' ICP runs side by side on the registration's threads (each result is
+    // a pure function of its start), then are recorded in index order.
+    let settled = contenders
+        .par_iter()
+        .map(|&k| {
+            let r = refine_prepared_pose(&pair, &out[k].transform, fine)?;
+            Ok((k, r, verifier.evidence(&r.transform)))
+        })
+        .collect::<Result<Vec<_>>>()?;
+    for (k, r, evidence) in settled {
         let h = &mut out[k];
         h.transform = r.transform;
-        h.evidence = verifier.evidence(&r.transform);
+        h.evidence = evidence;
         h.iterations += r.iterations;
         h.settled = true;
     }
