@@ -115,7 +115,7 @@ pub fn measure_edges(
     let pairs = strongest_per_scan(&candidates, poses.len());
     pairs
         .par_iter()
-        .map(|&(i, j)| measure_edge(prepared, icp, poses, (i, j), refine_cfg))
+        .map(|&(i, j)| measure_edge(prepared, icp, poses, i, j, refine_cfg))
         .collect()
 }
 
@@ -150,7 +150,8 @@ fn measure_edge(
     prepared: &[Prepared],
     icp: &IcpClouds,
     poses: &[Option<Rigid>],
-    (i, j): (usize, usize),
+    i: usize,
+    j: usize,
     refine_cfg: &RefineConfig,
 ) -> Result<Edge> {
     let (pi, pj) = (poses[i].unwrap(), poses[j].unwrap());

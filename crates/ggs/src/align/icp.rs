@@ -22,7 +22,8 @@ pub struct IcpCloud {
     /// Origin of the frame of `cloud`, in the scan's own frame: the centre of the ICP points'
     /// bounding box.
     pub centre: Point,
-    /// The scan's ICP points less `centre`, with their tree and shapes.
+    /// The scan's ICP points less `centre`, with their shapes (`shapes`) and their tree
+    /// (built when the cloud is first a target).
     pub cloud: Arc<PreparedCloud>,
     /// The local shape of each point, in point order.
     pub shapes: Arc<[LocalShape]>,
@@ -37,8 +38,10 @@ impl IcpCloud {
             .iter()
             .map(|p| [0, 1, 2].map(|d| p[d] - centre[d]))
             .collect();
-        let cloud = PreparedCloud::new(local, neighbors, epsilon);
-        let shapes = cloud.all_shapes();
+        let computing = PreparedCloud::new(local, neighbors, epsilon);
+        let shapes = computing.all_shapes();
+        let cloud =
+            PreparedCloud::with_shapes(computing.points, shapes.clone(), neighbors, epsilon);
         IcpCloud {
             centre,
             cloud: Arc::new(cloud),

@@ -43,7 +43,7 @@ pub fn refine_jointly(
     for _ in 0..JOINT_ROUNDS {
         let next: Vec<Option<Rigid>> = (0..poses.len())
             .into_par_iter()
-            .map(|i| refine_one(prepared, icp, &poses, edges, (i, anchor), refine_cfg))
+            .map(|i| refine_one(prepared, icp, &poses, edges, i, anchor, refine_cfg))
             .collect::<Result<_>>()?;
         poses = next;
     }
@@ -55,7 +55,8 @@ fn refine_one(
     icp: &IcpClouds,
     poses: &[Option<Rigid>],
     edges: &[Edge],
-    (i, anchor): (usize, usize),
+    i: usize,
+    anchor: usize,
     refine_cfg: &RefineConfig,
 ) -> Result<Option<Rigid>> {
     let Some(pose) = poses[i] else {

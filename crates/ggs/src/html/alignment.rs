@@ -43,14 +43,13 @@ pub fn write_folder_and_report(
 ) -> Result<()> {
     let (folder, report) = rayon::join(
         || crate::align::write_folder(dir, scans, alignment),
-        || {
-            let mut report = AlignmentReport::new(scans, alignment);
-            report.command = command;
-            report.html()
+        || AlignmentReport {
+            command,
+            ..AlignmentReport::new(scans, alignment)
         },
     );
     folder?;
-    crate::io::write_atomic(&dir.join("report.html"), report.as_bytes())
+    report.write(&dir.join("report.html"))
 }
 
 /// Everything the report shows: the alignment and display samples of the placed scans,
