@@ -456,15 +456,7 @@ fn assess(
     let verified_ratio = verification.and_then(|v| {
         let chosen = &v.hypotheses[v.chosen];
         let best = chosen.evidence.score;
-        // The overlap alone (the score before any free-space penalty, which warns apart).
-        let overlap = 0.5 * (chosen.evidence.fitness_source + chosen.evidence.fitness_target);
-        if overlap < LOW_EVIDENCE {
-            warnings.push(format!(
-                "low evidence: only {:.0} % of the points lie within {:.3} of the other cloud after alignment; the result is probably wrong",
-                100.0 * overlap,
-                v.distance
-            ));
-        }
+        warnings.extend(low_evidence(&chosen.evidence, v.distance));
         let tolerance = FREE_SPACE_WARNING * cfg.verify.unwrap_or_default().free_space_tolerance;
         if let Some(share) = chosen.evidence.free_space_violations.filter(|&s| s > tolerance) {
             warnings.push(format!(
@@ -503,6 +495,30 @@ fn assess(
     (1.0 - ratio, ratio >= ambiguous_ratio, warnings)
 }
 
+/// The low-evidence warning of a chosen pose, if its evidence is below [`LOW_EVIDENCE`]: its
+/// overlap `(f_s + f_t)/2` (the share of points within `distance` of the other cloud), or
+/// its score, the overlap less the free-space penalty `λ·max(0, v − v₀)`. A pose that only
+/// won because every other one put more of its points in the other scan's seen free space
+/// (all scoring 0) has a high confidence but a score near 0: it says so.
+fn low_evidence(e: &Evidence, distance: f64) -> Option<String> {
+    let overlap = 0.5 * (e.fitness_source + e.fitness_target);
+    if overlap < LOW_EVIDENCE {
+        Some(format!(
+            "low evidence: only {:.0} % of the points lie within {distance:.3} of the other cloud after alignment; the result is probably wrong",
+            100.0 * overlap,
+        ))
+    } else if e.score < LOW_EVIDENCE {
+        Some(format!(
+            "low evidence: {:.0} % of the points lie within {distance:.3} of the other cloud after alignment, but {:.1} % lie in the other scan's seen free space, which leaves a verification score of {:.3}, below {LOW_EVIDENCE}; the result is probably wrong",
+            100.0 * overlap,
+            100.0 * e.free_space_violations.unwrap_or(0.0),
+            e.score,
+        ))
+    } else {
+        None
+    }
+}
+
 /// What the final refinement says against its own pose: a degenerate information matrix
 /// (`λ_min / λ_max` below [`crate::refine::DEGENERATE_RATIO`]: the overlap leaves a motion
 /// free, and the pose may be off along it) and a refinement that stopped without converging.
@@ -528,6 +544,47 @@ fn refinement_warnings(report: &QualityReport) -> Vec<String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn evidence(fitness: [f64; 2], free_space: Option<f64>, cfg: &VerifyConfig) -> Evidence {
+        let overlap = 0.5 * (fitness[0] + fitness[1]);
+        let excess = free_space.map_or(0.0, |v| (v - cfg.free_space_tolerance).max(0.0));
+        Evidence {
+            fitness_source: fitness[0],
+            fitness_target: fitness[1],
+            score: (overlap - cfg.free_space_weight * excess).max(0.0),
+            points: [1000, 1000],
+            free_space_violations: free_space,
+        }
+    }
+
+    #[test]
+    fn low_evidence_counts_the_free_space_penalty() {
+        let cfg = VerifyConfig::default();
+        let d = 0.5;
+        // Little overlap: flagged, free space or not.
+        let thin = low_evidence(&evidence([0.05, 0.1], None, &cfg), d).unwrap();
+        assert!(thin.contains("only 8 %"), "{thin}");
+        // Enough overlap and no scan: not flagged.
+        assert_eq!(low_evidence(&evidence([0.14, 0.23], None, &cfg), d), None);
+        // The same overlap with 2.9 % in the seen free space (under the free-space warning's
+        // 3 %): the penalty leaves 0.095, flagged.
+        let seen = evidence([0.14, 0.23], Some(0.029), &cfg);
+        assert!(
+            seen.score < LOW_EVIDENCE && seen.score > 0.09,
+            "{}",
+            seen.score
+        );
+        let w = low_evidence(&seen, d).unwrap();
+        assert!(
+            w.contains("2.9 % lie in the other scan's seen free space"),
+            "{w}"
+        );
+        // Within the tolerance the score is the overlap: not flagged.
+        assert_eq!(
+            low_evidence(&evidence([0.14, 0.23], Some(0.015), &cfg), d),
+            None
+        );
+    }
 
     fn quality(eigenvalues: [f64; 6], converged: bool) -> QualityReport {
         QualityReport {

@@ -262,7 +262,8 @@ pub struct Evidence {
     pub fitness_source: f64,
     /// `f_t`: share of target points within `D` of a moved source point.
     pub fitness_target: f64,
-    /// `(f_s + f_t) / 2`.
+    /// `max(0, (f_s + f_t)/2 − λ·max(0, v − v₀))`: the overlap, less the free-space penalty
+    /// where a cloud is a scan from its origin (`v` = `free_space_violations`).
     pub score: f64,
     /// How many source and target points the sums ran over: the samples, or the part of them
     /// drawn for the subsample estimate for a hypothesis rejected on a subsample ([`finish`]).
