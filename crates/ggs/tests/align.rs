@@ -242,3 +242,60 @@ fn a_batch_run_at_once_gives_the_poses_of_one_run_after_another() {
     assert_eq!(poses(&one), poses(&two));
     assert_eq!(one.registrations, two.registrations);
 }
+
+/// The world poses of the keyframes `ks` of the BALM LiDAR recording of
+/// `../shared/data/scenes` (`alidarPose.csv`: a row-major 4×4 world ← LiDAR pose per four
+/// lines, the timestamp in the (4,4) slot), with their scans as given.
+fn lidar_keyframes(ks: &[usize]) -> Option<(Vec<AlignScan>, Vec<Option<Rigid>>)> {
+    let dir = common::shared_dir()?.join("data/scenes/balm_lidar");
+    let text = std::fs::read_to_string(dir.join("alidarPose.csv")).unwrap();
+    let rows: Vec<Vec<f64>> = text
+        .lines()
+        .filter(|l| !l.trim().is_empty())
+        .map(|l| l.split(',').filter_map(|v| v.trim().parse().ok()).collect())
+        .collect();
+    let pose = |k: usize| {
+        let r = &rows[4 * k..4 * k + 3];
+        let m = Matrix3::from_fn(|i, j| r[i][j]);
+        Rigid::new(m, Vector3::new(r[0][3], r[1][3], r[2][3]))
+    };
+    Some(
+        ks.iter()
+            .map(|&k| {
+                let name = format!("full{k}.pcd");
+                let cloud = read_cloud(&dir.join(&name), None).unwrap().cloud;
+                (AlignScan { name, cloud }, Some(pose(k)))
+            })
+            .unzip(),
+    )
+}
+
+#[test]
+fn lidar_scans_of_one_site_are_placed_by_their_overlap_at_the_scans_own_scale() {
+    // Six keyframes of a LiDAR recording 5–11 m and 30–180° apart. Far from the sensor a
+    // scan's points lie metres apart, so its overlap with the others counts at the
+    // verification's scale for scans (a fraction of the median range), not at a few point
+    // spacings of the dense ground near the sensor, where the right poses met 11–33 % of
+    // the model and no scan was placed.
+    let Some((scans, truths)) = lidar_keyframes(&[40, 46, 62, 71, 73, 85]) else {
+        return;
+    };
+    let a = align_with_defaults(&scans);
+    let placed: Vec<usize> = (0..scans.len())
+        .filter(|&i| a.scans[i].pose.is_some())
+        .collect();
+    assert!(placed.len() >= 3, "placed {placed:?}: {:?}", a.warnings);
+    let frame = scans.iter().position(|s| s.name == a.anchor).unwrap();
+    let to_frame = truths[frame].unwrap().inverse();
+    for &i in &placed {
+        let pose = a.scans[i].pose.unwrap();
+        let expected = to_frame.compose(&truths[i].unwrap());
+        let deg = rotation_angle_deg(&pose.rotation, &expected.rotation);
+        let m = (pose.translation - expected.translation).norm();
+        assert!(
+            deg < 1.0 && m < 0.2,
+            "{}: {deg:.2}° {m:.3} m off",
+            scans[i].name
+        );
+    }
+}

@@ -282,7 +282,7 @@ mod tests {
                 cloud: cloud(k as f64),
             })
             .collect();
-        prepare_all(&scans).unwrap()
+        prepare_all(&scans, 0.15).unwrap()
     }
 
     fn edge(from: usize, to: usize, relative: Rigid, accepted: bool) -> Edge {

@@ -179,7 +179,9 @@ impl Aligner {
                 format!("no scan {anchor} in a set of {n}"),
             ));
         }
-        let prepared = crate::threads::in_pool(runtime.threads, || scan::prepare_all(&scans))??;
+        let prepared = crate::threads::in_pool(runtime.threads, || {
+            scan::prepare_all(&scans, settings.verify_distance_range)
+        })??;
         let seed = scan::medoid(&prepared);
         let plan = placement_plan(settings, runtime)?;
         let rules = PlacementRules {

@@ -10,9 +10,11 @@ pub const OVERLAP_SPACINGS: f64 = 3.0;
 /// Points of a scan sampled to measure an overlap that decides a placement or is reported.
 pub const OVERLAP_SAMPLE: usize = 4000;
 
-/// Overlap distance of scans `i` and `j`: [`OVERLAP_SPACINGS`] spacings of the coarser.
+/// Overlap distance of scans `i` and `j`: [`OVERLAP_SPACINGS`] spacings of the coarser, and
+/// at least the larger [`Prepared::scan_distance`] of the two.
 pub fn overlap_distance(prepared: &[Prepared], i: usize, j: usize) -> f64 {
-    OVERLAP_SPACINGS * prepared[i].spacing.max(prepared[j].spacing)
+    let (a, b) = (&prepared[i], &prepared[j]);
+    (OVERLAP_SPACINGS * a.spacing.max(b.spacing)).max(a.scan_distance.max(b.scan_distance))
 }
 
 /// Share of scan `u`'s thinned points (a strided sample of at most `sample`), moved by

@@ -433,7 +433,7 @@ mod tests {
                 cloud,
             })
             .collect();
-        prepare_all(&scans).unwrap()
+        prepare_all(&scans, 0.15).unwrap()
     }
 
     fn rules(batch: usize) -> PlacementRules {

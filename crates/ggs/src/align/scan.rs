@@ -40,6 +40,13 @@ pub struct Prepared {
     pub index: PointIndex,
     /// Longest side of the bounding box.
     pub size: f64,
+    /// The least overlap distance this scan asks for: `verify_distance_range` × its median
+    /// range when its points look like a scan taken from its origin
+    /// ([`scan_median_range`](crate::pipeline::free_space::scan_median_range)), else 0. Far
+    /// from a LiDAR's sensor its points lie metres apart, where a multiple of the median
+    /// spacing (set by the dense ground near the sensor) would miss them at the right pose;
+    /// the verification's distance `D` has the same floor.
+    pub scan_distance: f64,
     /// The D2 shape distribution: the histogram of distances between pairs of a strided
     /// sample, over [0, `range`) in [`DESCRIPTOR_BINS`] bins, summing to 1. It does not change
     /// when the scan moves, so scans of the same part of a scene or object have near ones.
@@ -48,7 +55,8 @@ pub struct Prepared {
 
 /// Check the set (at least two scans, none empty, names unique) and prepare every scan; the
 /// descriptors share one distance range, the largest bounding-box diagonal of the set.
-pub fn prepare_all(scans: &[AlignScan]) -> Result<Vec<Prepared>> {
+/// `scan_distance_fraction` is the `verify_distance_range` setting ([`Prepared::scan_distance`]).
+pub fn prepare_all(scans: &[AlignScan], scan_distance_fraction: f64) -> Result<Vec<Prepared>> {
     if scans.len() < 2 {
         return Err(GgsError::param(
             "scans",
@@ -75,10 +83,11 @@ pub fn prepare_all(scans: &[AlignScan]) -> Result<Vec<Prepared>> {
         .map(|b| b.diagonal())
         .fold(0.0, f64::max);
     // Each scan on its own: the same result on any number of threads.
-    Ok(scans.par_iter().map(|s| prepare(&s.cloud, range)).collect())
+    let prepare = |s: &AlignScan| prepare(&s.cloud, range, scan_distance_fraction);
+    Ok(scans.par_iter().map(prepare).collect())
 }
 
-fn prepare(cloud: &Cloud, range: f64) -> Prepared {
+fn prepare(cloud: &Cloud, range: f64, scan_distance_fraction: f64) -> Prepared {
     let spacing = crate::spacing::point_spacing(cloud);
     let size = cloud
         .aabb()
@@ -96,6 +105,8 @@ fn prepare(cloud: &Cloud, range: f64) -> Prepared {
         icp_cell *= 2.0;
         icp = crate::thin::cell_centroids(&thinned, icp_cell);
     }
+    let sample = cloud.strided(crate::pipeline::verify::SAMPLE_POINTS);
+    let scan_range = crate::pipeline::free_space::scan_median_range(&sample);
     Prepared {
         spacing,
         thinned,
@@ -104,6 +115,7 @@ fn prepare(cloud: &Cloud, range: f64) -> Prepared {
         index,
         size,
         descriptor,
+        scan_distance: scan_range.map_or(0.0, |r| scan_distance_fraction * r),
     }
 }
 
@@ -183,12 +195,59 @@ mod tests {
                 cloud: cube_corners(0.02),
             },
         ];
-        let p = prepare_all(&scans).unwrap();
+        let p = prepare_all(&scans, 0.15).unwrap();
         let same = descriptor_distance(&p[0].descriptor, &p[1].descriptor);
         let other = descriptor_distance(&p[0].descriptor, &p[2].descriptor);
         // Thinning on axis-aligned cells and the strided sample differ slightly once moved.
         assert!(same < 0.1, "{same}");
         assert!(other > 0.3, "{other}");
+    }
+
+    /// A LiDAR-like scan about its origin: ground rings 1–10.5 m out, as many points on each
+    /// (dense near the sensor), and a sparser wall 20 m out.
+    fn yard() -> Cloud {
+        let mut points = Vec::new();
+        for k in 0..3600 {
+            let (r, a) = (
+                1.0 + 0.5 * (k / 180) as f64,
+                (k % 180) as f64 * 2f64.to_radians(),
+            );
+            points.push([r * a.cos(), r * a.sin(), -1.5]);
+            if k % 4 == 0 {
+                let z = (k % 7) as f64 * 0.5;
+                points.push([20.0 * (a + 0.01).cos(), 20.0 * (a + 0.01).sin(), z]);
+            }
+        }
+        Cloud::new(points)
+    }
+
+    #[test]
+    fn a_scan_from_its_origin_asks_for_an_overlap_distance_at_its_range_scale() {
+        let scans = [
+            AlignScan {
+                name: "yard".into(),
+                cloud: yard(),
+            },
+            AlignScan {
+                name: "cube".into(),
+                cloud: cube_corners(0.05),
+            },
+        ];
+        let p = prepare_all(&scans, 0.15).unwrap();
+        // The median range is about 7 m (on the ground rings), so the distance about 1 m.
+        assert!(p[0].scan_distance > 0.15 * 6.0, "{}", p[0].scan_distance);
+        let spacings = crate::align::overlap::OVERLAP_SPACINGS * p[0].spacing;
+        assert!(p[0].scan_distance > 2.0 * spacings, "{spacings}");
+        assert_eq!(
+            p[1].scan_distance, 0.0,
+            "an object is no scan from its origin"
+        );
+        let d = crate::align::overlap::overlap_distance(&p, 0, 1);
+        assert_eq!(d, p[0].scan_distance);
+        assert_eq!(
+            crate::align::overlap::overlap_distance(&p, 1, 1),
+            crate::align::overlap::OVERLAP_SPACINGS * p[1].spacing
+        );
     }
 
     #[test]
@@ -197,10 +256,10 @@ mod tests {
             name: "a".into(),
             cloud: cube_corners(0.01),
         }];
-        let e = prepare_all(&one).err().unwrap().to_string();
+        let e = prepare_all(&one, 0.15).err().unwrap().to_string();
         assert!(e.contains("at least two scans"), "{e}");
         let twice = [one[0].clone(), one[0].clone()];
-        let e = prepare_all(&twice).err().unwrap().to_string();
+        let e = prepare_all(&twice, 0.15).err().unwrap().to_string();
         assert!(e.contains("both named \"a\""), "{e}");
         let empty = [
             one[0].clone(),
@@ -209,7 +268,7 @@ mod tests {
                 cloud: Cloud::new(vec![]),
             },
         ];
-        let e = prepare_all(&empty).err().unwrap().to_string();
+        let e = prepare_all(&empty, 0.15).err().unwrap().to_string();
         assert!(e.contains("e.ply"), "{e}");
     }
 }
